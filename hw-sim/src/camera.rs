@@ -1,0 +1,108 @@
+//! The simulated camera: frames rendered from the lab's scenario, delivered on the lab clock with
+//! frame ids (from 0) and device timestamps (id/fps of the lab clock, mid-exposure). Frames can
+//! be lost on demand (ids skip, as with a real camera's lost packets) and the camera can
+//! disconnect after a given number of frames.
+
+use crate::config::Pace;
+use crate::lab::SimLab;
+use crate::render::Renderer;
+use crate::rng::Rng;
+use std::sync::Arc;
+use std::time::Duration;
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SimError {
+    #[error("simulated camera disconnected after {0} frames")]
+    Disconnected(u64),
+}
+
+pub struct SimFrame {
+    pub frame_id: u64,
+    pub timestamp_ns: u64,
+    /// Row-major pixels; 16-bit frames are little-endian.
+    pub data: Vec<u8>,
+}
+
+pub struct SimCamera {
+    lab: Arc<SimLab>,
+    renderer: Renderer,
+    start_index: Option<u64>,
+    next_index: u64,
+    delivered: u64,
+    rng: Rng,
+}
+
+impl SimCamera {
+    pub(crate) fn new(lab: Arc<SimLab>) -> SimCamera {
+        let renderer = Renderer::new(lab.scene.clone(), lab.cfg.clone(), lab.cfg.seed);
+        let rng = Rng::new(lab.cfg.seed ^ 0xD409);
+        SimCamera {
+            lab,
+            renderer,
+            start_index: None,
+            next_index: 0,
+            delivered: 0,
+            rng,
+        }
+    }
+
+    pub fn frame_bytes(&self) -> usize {
+        self.renderer.frame_bytes()
+    }
+
+    /// Starts (or restarts) streaming: the first frame is the next one due on the lab clock.
+    pub fn start(&mut self) {
+        let fps = self.lab.scene.frame_rate_hz;
+        let idx = (self.lab.clock().now_s() * fps).ceil().max(0.0) as u64;
+        self.start_index = Some(idx);
+        self.next_index = idx;
+    }
+
+    /// Blocks until the next frame is due (real-time pace), renders it and returns it.
+    pub fn next_frame(&mut self, buf: Vec<u8>) -> Result<SimFrame, SimError> {
+        if self.start_index.is_none() {
+            self.start();
+        }
+        let start = self.start_index.unwrap_or(0);
+        if let Some(limit) = self.lab.cfg.disconnect_after_frames {
+            if self.delivered >= limit {
+                return Err(SimError::Disconnected(self.delivered));
+            }
+        }
+        let fps = self.lab.scene.frame_rate_hz;
+        let clock = self.lab.clock().clone();
+        loop {
+            let idx = self.next_index;
+            self.next_index += 1;
+            let t = idx as f64 / fps;
+            match clock.pace() {
+                Pace::RealTime => {
+                    let due = clock.epoch() + Duration::from_secs_f64(t);
+                    let now = std::time::Instant::now();
+                    if due > now {
+                        std::thread::sleep(due - now);
+                    }
+                }
+                Pace::FreeRun => clock.set_free_run_now(t),
+            }
+            let frame_id = idx - start;
+            let lost = self.lab.cfg.drop_frame_ids.contains(&frame_id)
+                || (self.lab.cfg.drop_probability > 0.0
+                    && self.rng.uniform() < self.lab.cfg.drop_probability);
+            if lost {
+                continue;
+            }
+            let release = self.lab.release_time_s();
+            let lab = self.lab.clone();
+            let mut data = buf;
+            self.renderer
+                .render(t, &move |tt| lab.bodies_at(tt, release), &mut data);
+            self.delivered += 1;
+            return Ok(SimFrame {
+                frame_id,
+                timestamp_ns: (t * 1e9).round() as u64,
+                data,
+            });
+        }
+    }
+}

@@ -1,0 +1,218 @@
+//! What the simulated lab is told: `LabConfig` is the `[sim]` section of an impactcam config
+//! (the experiment the simulator stages), `Scene` is what the rig looks like (camera frame, views,
+//! spheres), filled in by the caller from its own geometry.
+
+use crate::physics::Material;
+use serde::{Deserialize, Serialize};
+
+/// How the simulated camera's clock runs.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Pace {
+    /// Frames are delivered when a real camera would deliver them.
+    RealTime,
+    /// Frames are delivered as fast as they can be rendered; the device clock still advances by
+    /// 1/fps per frame, and relay events are stamped on that clock.
+    FreeRun,
+}
+
+/// The `[sim]` section: the experiment the simulator stages. Every field has a default.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct LabConfig {
+    /// Everything random (spin jitter, markers, noise, drops) follows from this seed.
+    pub seed: u64,
+    /// Material preset: glass, acetate, teflon or steel.
+    pub material: String,
+    /// Override the preset's normal restitution.
+    pub e: Option<f64>,
+    /// Override the preset's friction coefficient.
+    pub mu: Option<f64>,
+    /// Override the preset's sticking tangential restitution.
+    pub beta0: Option<f64>,
+    /// Both tubes' angle below horizontal; they mirror each other about the vertical.
+    pub tube_angle_deg: f64,
+    /// Rolling length inside each tube; sets the exit speed (rolling without slip,
+    /// a = 5/7 g sin θ).
+    pub tube_length_mm: f64,
+    /// Free flight from the tube exits to first contact.
+    pub flight_time_ms: f64,
+    /// In-plane impact parameter as a fraction of the contact distance (0 = head-on). Sets the
+    /// obliquity, hence ψ1.
+    pub impact_offset: f64,
+    /// Out-of-plane impact parameter, same units; makes the contact normal leave the x–y plane.
+    pub impact_offset_z: f64,
+    /// Magnitude of a small velocity along z given to each sphere at the tube exit.
+    pub out_of_plane_velocity_mm_s: f64,
+    /// Magnitude of an extra spin about a random axis added to each sphere at the tube exit.
+    pub spin_jitter_rad_s: f64,
+    /// From relay closing to the solenoid shafts letting the spheres go.
+    pub solenoid_delay_ms: f64,
+    pub markers_per_sphere: u32,
+    pub marker_diameter_mm: f64,
+    pub background_grey: f64,
+    pub sphere_grey: f64,
+    pub marker_grey: f64,
+    /// Gaussian read noise, grey levels (8-bit scale).
+    pub noise_sigma_grey: f64,
+    /// Electrons per grey level for shot noise; 0 disables shot noise.
+    pub shot_noise_e_per_grey: f64,
+    /// Exposure time; the image is averaged over it (motion blur). 0 = instantaneous.
+    pub exposure_ms: f64,
+    /// Samples per pixel side for anti-aliasing (4 → 16 samples).
+    pub supersample: u32,
+    /// Frame ids the camera loses (as a real camera loses packets).
+    pub drop_frame_ids: Vec<u64>,
+    /// Probability of losing any frame.
+    pub drop_probability: f64,
+    /// The camera disconnects after delivering this many frames.
+    pub disconnect_after_frames: Option<u64>,
+    pub pace: Pace,
+}
+
+impl Default for LabConfig {
+    fn default() -> Self {
+        LabConfig {
+            seed: 1,
+            material: "teflon".into(),
+            e: None,
+            mu: None,
+            beta0: None,
+            tube_angle_deg: 30.0,
+            tube_length_mm: 40.0,
+            flight_time_ms: 60.0,
+            impact_offset: 0.35,
+            impact_offset_z: 0.05,
+            out_of_plane_velocity_mm_s: 15.0,
+            spin_jitter_rad_s: 20.0,
+            solenoid_delay_ms: 5.0,
+            markers_per_sphere: 6,
+            marker_diameter_mm: 1.0,
+            background_grey: 30.0,
+            sphere_grey: 200.0,
+            marker_grey: 40.0,
+            noise_sigma_grey: 2.0,
+            shot_noise_e_per_grey: 0.0,
+            exposure_ms: 0.1,
+            supersample: 4,
+            drop_frame_ids: Vec::new(),
+            drop_probability: 0.0,
+            disconnect_after_frames: None,
+            pace: Pace::RealTime,
+        }
+    }
+}
+
+impl LabConfig {
+    /// The collision coefficients the lab will use: the preset with any overrides.
+    pub fn material(&self) -> Result<Material, String> {
+        let mut m = Material::preset(&self.material).ok_or_else(|| {
+            format!(
+                "sim.material: unknown material {:?}, expected one of {}",
+                self.material,
+                Material::PRESETS.join(", ")
+            )
+        })?;
+        if let Some(e) = self.e {
+            m.e = e;
+        }
+        if let Some(mu) = self.mu {
+            m.mu = mu;
+        }
+        if let Some(b) = self.beta0 {
+            m.beta0 = b;
+        }
+        Ok(m)
+    }
+
+    /// Checks every value; the error names the key (`sim.…`) and what was expected.
+    pub fn validate(&self) -> Result<(), String> {
+        let m = self.material()?;
+        let range = |key: &str, v: f64, lo: f64, hi: f64| -> Result<(), String> {
+            if v.is_finite() && v >= lo && v <= hi {
+                Ok(())
+            } else {
+                Err(format!(
+                    "sim.{key}: {v} is out of range, expected {lo} to {hi}"
+                ))
+            }
+        };
+        range("e", m.e, 0.0, 1.0)?;
+        range("mu", m.mu, 0.0, 2.0)?;
+        range("beta0", m.beta0, -1.0, 1.0)?;
+        range("tube_angle_deg", self.tube_angle_deg, 5.0, 80.0)?;
+        range("tube_length_mm", self.tube_length_mm, 1.0, 5000.0)?;
+        range("flight_time_ms", self.flight_time_ms, 1.0, 1000.0)?;
+        range("impact_offset", self.impact_offset, -0.99, 0.99)?;
+        range("impact_offset_z", self.impact_offset_z, -0.99, 0.99)?;
+        if self.impact_offset.powi(2) + self.impact_offset_z.powi(2) >= 0.99 {
+            return Err("sim.impact_offset, sim.impact_offset_z: together they must stay below 1 (the spheres would miss)".into());
+        }
+        range(
+            "out_of_plane_velocity_mm_s",
+            self.out_of_plane_velocity_mm_s,
+            0.0,
+            1000.0,
+        )?;
+        range("spin_jitter_rad_s", self.spin_jitter_rad_s, 0.0, 10000.0)?;
+        range("solenoid_delay_ms", self.solenoid_delay_ms, 0.0, 1000.0)?;
+        range(
+            "markers_per_sphere",
+            self.markers_per_sphere as f64,
+            0.0,
+            12.0,
+        )?;
+        range("marker_diameter_mm", self.marker_diameter_mm, 0.0, 10.0)?;
+        range("background_grey", self.background_grey, 0.0, 255.0)?;
+        range("sphere_grey", self.sphere_grey, 0.0, 255.0)?;
+        range("marker_grey", self.marker_grey, 0.0, 255.0)?;
+        range("noise_sigma_grey", self.noise_sigma_grey, 0.0, 100.0)?;
+        range(
+            "shot_noise_e_per_grey",
+            self.shot_noise_e_per_grey,
+            0.0,
+            1e6,
+        )?;
+        range("exposure_ms", self.exposure_ms, 0.0, 100.0)?;
+        range("supersample", self.supersample as f64, 1.0, 16.0)?;
+        range("drop_probability", self.drop_probability, 0.0, 0.5)?;
+        Ok(())
+    }
+}
+
+/// One view of the scene inside the camera frame (orthographic).
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewSpec {
+    pub name: String,
+    /// u, v, width, height of the view inside the frame, px.
+    pub region: [u32; 4],
+    pub px_per_mm: f64,
+    /// Image (u, v) of the world origin.
+    pub origin_px: [f64; 2],
+    /// World unit vector along which image u increases.
+    pub u_axis: [f64; 3],
+    /// World unit vector along which image v increases.
+    pub v_axis: [f64; 3],
+    /// World unit vector from the scene towards this view's (virtual) camera: the visible
+    /// hemisphere.
+    pub facing: [f64; 3],
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SphereSpec {
+    pub diameter_mm: f64,
+    pub mass_g: f64,
+}
+
+/// The rig as the caller's geometry describes it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Scene {
+    pub width: u32,
+    pub height: u32,
+    pub frame_rate_hz: f64,
+    /// 8 (Mono8) or 16 (Mono16, little-endian).
+    pub bit_depth: u32,
+    pub views: Vec<ViewSpec>,
+    /// Sphere a (released from the left tube) and sphere b.
+    pub spheres: [SphereSpec; 2],
+}

@@ -1,0 +1,184 @@
+//! The simulated lab as one object: the staged scenario, the lab clock (which is also the
+//! simulated camera's device clock), the relay on its pseudo-terminal, and the ground truth.
+
+use crate::camera::SimCamera;
+use crate::config::{LabConfig, Pace, Scene};
+use crate::physics::Body;
+use crate::relay::{RelayEvent, RelayLog, SimRelay};
+use crate::render::project;
+use crate::scenario::Scenario;
+use crate::V3;
+use serde_json::{json, Value};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// Seconds since the lab started (real time), or the time of the frame being rendered
+/// (free-run): the device clock of the simulated camera either way.
+pub struct LabClock {
+    epoch: Instant,
+    pace: Pace,
+    free_run_now_bits: AtomicU64,
+}
+
+impl LabClock {
+    pub fn now_s(&self) -> f64 {
+        match self.pace {
+            Pace::RealTime => self.epoch.elapsed().as_secs_f64(),
+            Pace::FreeRun => f64::from_bits(self.free_run_now_bits.load(Ordering::Acquire)),
+        }
+    }
+    pub(crate) fn set_free_run_now(&self, t: f64) {
+        self.free_run_now_bits.store(t.to_bits(), Ordering::Release);
+    }
+    pub(crate) fn epoch(&self) -> Instant {
+        self.epoch
+    }
+    pub(crate) fn pace(&self) -> Pace {
+        self.pace
+    }
+}
+
+pub struct SimLab {
+    pub cfg: LabConfig,
+    pub scene: Scene,
+    pub scenario: Scenario,
+    clock: Arc<LabClock>,
+    log: Arc<Mutex<RelayLog>>,
+    relay: SimRelay,
+}
+
+impl SimLab {
+    pub fn new(cfg: LabConfig, scene: Scene) -> Result<Arc<SimLab>, String> {
+        let scenario = Scenario::new(&cfg, &scene.spheres)?;
+        let clock = Arc::new(LabClock {
+            epoch: Instant::now(),
+            pace: cfg.pace,
+            free_run_now_bits: AtomicU64::new(0f64.to_bits()),
+        });
+        let log = Arc::new(Mutex::new(RelayLog::default()));
+        let relay = SimRelay::spawn(clock.clone(), log.clone())
+            .map_err(|e| format!("sim relay: cannot create a pseudo-terminal: {e}"))?;
+        Ok(Arc::new(SimLab {
+            cfg,
+            scene,
+            scenario,
+            clock,
+            log,
+            relay,
+        }))
+    }
+
+    /// Serial device path of the simulated relay module.
+    pub fn relay_port(&self) -> &str {
+        self.relay.port_path()
+    }
+
+    pub fn clock(&self) -> &Arc<LabClock> {
+        &self.clock
+    }
+
+    pub fn relay_events(&self) -> Vec<RelayEvent> {
+        self.log
+            .lock()
+            .map(|l| l.events.clone())
+            .unwrap_or_default()
+    }
+
+    pub fn relay_bad_frames(&self) -> u64 {
+        self.log.lock().map(|l| l.bad_frames).unwrap_or(0)
+    }
+
+    /// Whether the relay is closed now, as the module sees it.
+    pub fn relay_closed(&self) -> bool {
+        self.relay_events().last().is_some_and(|e| e.closed)
+    }
+
+    /// When the solenoids let go, on the lab clock: the first relay closing plus the solenoid
+    /// delay. None while the relay has never closed.
+    pub fn release_time_s(&self) -> Option<f64> {
+        self.relay_events()
+            .iter()
+            .find(|e| e.closed)
+            .map(|e| e.time_s + self.cfg.solenoid_delay_ms / 1000.0)
+    }
+
+    /// Both spheres and their marker positions (world, mm) at lab time t.
+    pub fn bodies_at(&self, t: f64, release: Option<f64>) -> ([Body; 2], [Vec<V3>; 2]) {
+        let tau = match release {
+            Some(r) => t - r,
+            None => -1.0,
+        };
+        let b = self.scenario.state_at(tau);
+        let m = [
+            self.scenario.marker_positions(0, &b[0]),
+            self.scenario.marker_positions(1, &b[1]),
+        ];
+        (b, m)
+    }
+
+    pub fn camera(self: &Arc<Self>) -> SimCamera {
+        SimCamera::new(self.clone())
+    }
+
+    /// Ground truth for the given frames (frame id, device timestamp in ns), as JSON.
+    pub fn truth(&self, frames: &[(u64, u64)]) -> Value {
+        let release = self.release_time_s();
+        let sc = &self.scenario;
+        let impact_time = release.map(|r| r + sc.impact_tau_s);
+        let state = |b: &Body| json!({"position_mm": v(&b.pos_mm), "velocity_mm_s": v(&b.vel_mm_s), "spin_rad_s": v(&b.spin_rad_s)});
+        let per_frame: Vec<Value> = frames
+            .iter()
+            .map(|&(id, ts)| {
+                let t = ts as f64 * 1e-9;
+                let (bodies, markers) = self.bodies_at(t, release);
+                let spheres: Vec<Value> = (0..2)
+                    .map(|i| {
+                        let views: serde_json::Map<String, Value> = self
+                            .scene
+                            .views
+                            .iter()
+                            .map(|view| {
+                                let (u, vv) = project(view, &bodies[i].pos_mm);
+                                (view.name.clone(), json!({"centre_px": [u, vv], "diameter_px": 2.0 * bodies[i].radius_mm * view.px_per_mm}))
+                            })
+                            .collect();
+                        json!({
+                            "centre_mm": v(&bodies[i].pos_mm),
+                            "velocity_mm_s": v(&bodies[i].vel_mm_s),
+                            "spin_rad_s": v(&bodies[i].spin_rad_s),
+                            "views": views,
+                            "markers_mm": markers[i].iter().map(v).collect::<Vec<_>>(),
+                        })
+                    })
+                    .collect();
+                json!({"frame_id": id, "time_s": t, "spheres": {"a": spheres[0], "b": spheres[1]}})
+            })
+            .collect();
+        let o = &sc.outcome;
+        json!({
+            "schema": "hw-sim.truth/1",
+            "material": sc.material,
+            "relay_events": self.relay_events(),
+            "release_time_s": release,
+            "impact": {
+                "time_s": impact_time,
+                "normal": o.normal,
+            },
+            "e": o.e,
+            "beta": o.beta,
+            "psi1": o.psi1,
+            "psi2": o.psi2,
+            "branch": if o.sliding { "sliding" } else { "sticking" },
+            "spheres": {
+                "a": {"pre": state(&sc.pre[0]), "post": state(&sc.post[0]), "diameter_mm": 2.0 * sc.pre[0].radius_mm},
+                "b": {"pre": state(&sc.pre[1]), "post": state(&sc.post[1]), "diameter_mm": 2.0 * sc.pre[1].radius_mm},
+            },
+            "frames": per_frame,
+        })
+    }
+}
+
+fn v(x: &V3) -> [f64; 3] {
+    [x.x, x.y, x.z]
+}

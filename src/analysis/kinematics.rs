@@ -1,0 +1,349 @@
+//! Trajectories and the impact: per-sphere ballistic fits before and after the impact (gravity
+//! known, so each axis is a straight-line fit of position minus ½gt²), the impact time where the
+//! pre-impact trajectories reach contact distance (cross-checked by the intersection of the pre
+//! and post separation lines), the contact normal there, and e — physics.md §6. Uncertainties are
+//! propagated from the fit covariances through a numerical Jacobian of everything derived.
+
+use nalgebra::{DMatrix, Matrix2, Vector3};
+
+pub type V3 = Vector3<f64>;
+
+/// Observations of one coordinate of one sphere: (time s, value mm).
+pub type Series = Vec<(f64, f64)>;
+
+/// p(t) = p0 + v·(t − t_ref) + ½·g·(t − t_ref)², with (p0, v) fitted.
+#[derive(Clone, Copy, Debug)]
+pub struct LineFit {
+    pub p0: f64,
+    pub v: f64,
+    pub cov: Matrix2<f64>,
+    pub rms: f64,
+    pub n: usize,
+    pub rejected: usize,
+}
+
+/// Least-squares (p0, v) with robust rejection of frames further than max(4σ, 0.02 mm) from the
+/// trajectory (a mis-fitted circle must not tilt a velocity).
+pub fn fit_line(obs: &[(f64, f64)], t_ref: f64, g: f64) -> Option<LineFit> {
+    let mut keep: Vec<(f64, f64)> = obs
+        .iter()
+        .map(|&(t, x)| (t - t_ref, x - 0.5 * g * (t - t_ref).powi(2)))
+        .collect();
+    let total = keep.len();
+    let mut fit = None;
+    for _ in 0..3 {
+        let n = keep.len();
+        if n < 2 {
+            return None;
+        }
+        let (st, sx, stt, stx) = keep.iter().fold((0.0, 0.0, 0.0, 0.0), |a, &(t, x)| {
+            (a.0 + t, a.1 + x, a.2 + t * t, a.3 + t * x)
+        });
+        let nf = n as f64;
+        let det = nf * stt - st * st;
+        if det.abs() < 1e-18 {
+            return None;
+        }
+        let v = (nf * stx - st * sx) / det;
+        let p0 = (sx - v * st) / nf;
+        let res: Vec<f64> = keep.iter().map(|&(t, x)| x - p0 - v * t).collect();
+        let ss: f64 = res.iter().map(|r| r * r).sum();
+        let s2 = if n > 2 { ss / (n - 2) as f64 } else { 0.0 };
+        let inv = Matrix2::new(stt, -st, -st, nf) / det;
+        let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
+        abs.sort_by(f64::total_cmp);
+        let sigma = 1.4826 * abs[abs.len() / 2];
+        let limit = (4.0 * sigma).max(0.02);
+        fit = Some(LineFit {
+            p0,
+            v,
+            cov: inv * s2,
+            rms: (ss / nf).sqrt(),
+            n,
+            rejected: total - n,
+        });
+        let before = keep.len();
+        let kept: Vec<(f64, f64)> = keep
+            .iter()
+            .zip(res.iter())
+            .filter(|(_, r)| r.abs() <= limit)
+            .map(|(p, _)| *p)
+            .collect();
+        if kept.len() == before || kept.len() < 3 {
+            break;
+        }
+        keep = kept;
+    }
+    fit
+}
+
+/// Fits of one sphere on one side of the impact; an axis no view measures is None.
+#[derive(Clone, Copy, Debug)]
+pub struct SideFit {
+    pub axes: [Option<LineFit>; 3],
+}
+
+impl SideFit {
+    pub fn fit(series: &[Series; 3], t_ref: f64, gravity_mm_s2: f64) -> SideFit {
+        let g = [0.0, -gravity_mm_s2, 0.0];
+        SideFit {
+            axes: [0, 1, 2].map(|i| fit_line(&series[i], t_ref, g[i])),
+        }
+    }
+}
+
+/// [a pre, b pre, a post, b post]
+pub type Fits = [SideFit; 4];
+
+/// Everything derived from the four fits.
+#[derive(Clone, Debug)]
+pub struct Derived {
+    /// Impact time relative to t_ref, s.
+    pub tau_c: f64,
+    pub e: f64,
+    pub normal: V3,
+    /// [a pre, b pre, a post, b post] velocities at the impact, mm/s.
+    pub velocities: [V3; 4],
+    pub tau_intersection: f64,
+    /// Closest approach of the pre-impact trajectories, mm (for the no-impact message).
+    pub closest_mm: f64,
+}
+
+impl Derived {
+    /// Flattened for covariance propagation: [tau_c, e, n(3), v(12), tau_x].
+    fn to_vec(&self) -> Vec<f64> {
+        let mut v = vec![
+            self.tau_c,
+            self.e,
+            self.normal.x,
+            self.normal.y,
+            self.normal.z,
+        ];
+        for w in &self.velocities {
+            v.extend_from_slice(w.as_slice());
+        }
+        v.push(self.tau_intersection);
+        v
+    }
+}
+
+fn params(fits: &Fits) -> Vec<f64> {
+    let mut p = Vec::new();
+    for f in fits {
+        for l in f.axes.iter().flatten() {
+            p.push(l.p0);
+            p.push(l.v);
+        }
+    }
+    p
+}
+
+fn with_params(fits: &Fits, p: &[f64]) -> Fits {
+    let mut out = *fits;
+    let mut k = 0;
+    for f in out.iter_mut() {
+        for l in f.axes.iter_mut().flatten() {
+            l.p0 = p[k];
+            l.v = p[k + 1];
+            k += 2;
+        }
+    }
+    out
+}
+
+fn pos_vel(f: &SideFit, tau: f64, g: f64) -> (V3, V3) {
+    let gv = [0.0, -g, 0.0];
+    let mut p = V3::zeros();
+    let mut v = V3::zeros();
+    for i in 0..3 {
+        if let Some(l) = &f.axes[i] {
+            p[i] = l.p0 + l.v * tau + 0.5 * gv[i] * tau * tau;
+            v[i] = l.v + gv[i] * tau;
+        }
+    }
+    (p, v)
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum ImpactError {
+    /// The pre-impact trajectories never come within contact distance.
+    NoContact { closest_mm: f64 },
+    /// Spheres are not approaching before the "impact".
+    NotApproaching,
+}
+
+/// Impact time, normal, e and velocities from the four fits (all with the same t_ref).
+pub fn derive(fits: &Fits, contact_mm: f64, g: f64) -> Result<Derived, ImpactError> {
+    let (pa, va) = pos_vel(&fits[0], 0.0, g);
+    let (pb, vb) = pos_vel(&fits[1], 0.0, g);
+    // Gravity acts on both alike: the separation is a straight line in time.
+    let dp = pb - pa;
+    let dv = vb - va;
+    let a = dv.norm_squared();
+    if a < 1e-12 {
+        return Err(ImpactError::NotApproaching);
+    }
+    let b = dp.dot(&dv);
+    let c = dp.norm_squared() - contact_mm * contact_mm;
+    let tau_closest = -b / a;
+    let closest = (dp + dv * tau_closest).norm();
+    let disc = b * b - a * c;
+    if disc < 0.0 {
+        return Err(ImpactError::NoContact {
+            closest_mm: closest,
+        });
+    }
+    let tau_c = (-b - disc.sqrt()) / a;
+    let normal = (dp + dv * tau_c) / contact_mm;
+    let rel_pre = dv;
+    let (pa2, va2) = pos_vel(&fits[2], 0.0, g);
+    let (pb2, vb2) = pos_vel(&fits[3], 0.0, g);
+    let rel_post = vb2 - va2;
+    let g_n = rel_pre.dot(&normal);
+    if g_n >= 0.0 {
+        return Err(ImpactError::NotApproaching);
+    }
+    let e = -rel_post.dot(&normal) / g_n;
+    let a_off = dp - (pb2 - pa2);
+    let b_off = dv - rel_post;
+    let tau_x = if b_off.norm_squared() > 1e-12 {
+        -a_off.dot(&b_off) / b_off.norm_squared()
+    } else {
+        tau_c
+    };
+    let vel = |f: &SideFit| pos_vel(f, tau_c, g).1;
+    Ok(Derived {
+        tau_c,
+        e,
+        normal,
+        velocities: [vel(&fits[0]), vel(&fits[1]), vel(&fits[2]), vel(&fits[3])],
+        tau_intersection: tau_x,
+        closest_mm: closest,
+    })
+}
+
+/// One-sigma uncertainties of everything in `Derived`, by first-order propagation of the fit
+/// covariances (fits are independent of each other).
+pub fn uncertainties(fits: &Fits, contact_mm: f64, g: f64) -> Result<Derived, ImpactError> {
+    let base = derive(fits, contact_mm, g)?;
+    let p = params(fits);
+    let mut cov = DMatrix::<f64>::zeros(p.len(), p.len());
+    let mut k = 0;
+    for f in fits {
+        for l in f.axes.iter().flatten() {
+            for (i, j) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                cov[(k + i, k + j)] = l.cov[(i, j)];
+            }
+            k += 2;
+        }
+    }
+    let y0 = base.to_vec();
+    let mut jac = DMatrix::<f64>::zeros(y0.len(), p.len());
+    for j in 0..p.len() {
+        let h = (cov[(j, j)].sqrt() * 1e-3).max(1e-9);
+        let eval = |delta: f64| {
+            let mut q = p.clone();
+            q[j] += delta;
+            derive(&with_params(fits, &q), contact_mm, g)
+                .ok()
+                .map(|d| d.to_vec())
+        };
+        let col: Option<Vec<f64>> = match (eval(h), eval(-h)) {
+            (Some(a), Some(b)) => {
+                Some(a.iter().zip(&b).map(|(x, y)| (x - y) / (2.0 * h)).collect())
+            }
+            (Some(a), None) => Some(a.iter().zip(&y0).map(|(x, y)| (x - y) / h).collect()),
+            (None, Some(b)) => Some(y0.iter().zip(&b).map(|(x, y)| (x - y) / h).collect()),
+            (None, None) => None,
+        };
+        if let Some(col) = col {
+            for (i, v) in col.into_iter().enumerate() {
+                jac[(i, j)] = v;
+            }
+        }
+    }
+    let out_cov = &jac * cov * jac.transpose();
+    let s: Vec<f64> = (0..y0.len())
+        .map(|i| out_cov[(i, i)].max(0.0).sqrt())
+        .collect();
+    let v3 = |i: usize| V3::new(s[i], s[i + 1], s[i + 2]);
+    Ok(Derived {
+        tau_c: s[0],
+        e: s[1],
+        normal: v3(2),
+        velocities: [v3(5), v3(8), v3(11), v3(14)],
+        tau_intersection: s[17],
+        closest_mm: 0.0,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn series(p0: V3, v: V3, g: f64, times: &[f64]) -> [Series; 3] {
+        [0, 1, 2].map(|i| {
+            let gi = if i == 1 { -g } else { 0.0 };
+            times
+                .iter()
+                .map(|&t| (t, p0[i] + v[i] * t + 0.5 * gi * t * t))
+                .collect()
+        })
+    }
+
+    #[test]
+    fn exact_trajectories_give_exact_impact_and_e() {
+        let g = 9806.65;
+        let (d, e) = (6.0, 0.8);
+        // Head-on along x, contact at t = 0, both falling alike.
+        let va = V3::new(500.0, -300.0, 0.0);
+        let vb = V3::new(-500.0, -300.0, 0.0);
+        let pre: Vec<f64> = (1..15).map(|k| -(k as f64) * 1e-3).collect();
+        let post: Vec<f64> = (1..15).map(|k| k as f64 * 1e-3).collect();
+        let va2 = V3::new(-500.0 * e, -300.0, 0.0);
+        let vb2 = V3::new(500.0 * e, -300.0, 0.0);
+        let fits = [
+            SideFit::fit(&series(V3::new(-3.0, 0.0, 0.0), va, g, &pre), 0.0, g),
+            SideFit::fit(&series(V3::new(3.0, 0.0, 0.0), vb, g, &pre), 0.0, g),
+            SideFit::fit(&series(V3::new(-3.0, 0.0, 0.0), va2, g, &post), 0.0, g),
+            SideFit::fit(&series(V3::new(3.0, 0.0, 0.0), vb2, g, &post), 0.0, g),
+        ];
+        let dd = derive(&fits, d, g).unwrap();
+        assert!(dd.tau_c.abs() < 1e-9, "{}", dd.tau_c);
+        assert!((dd.e - e).abs() < 1e-9);
+        assert!((dd.normal - V3::x()).norm() < 1e-9);
+        assert!((dd.velocities[0] - va).norm() < 1e-6);
+    }
+
+    #[test]
+    fn missing_each_other_is_no_contact() {
+        let g = 9806.65;
+        let pre: Vec<f64> = (1..15).map(|k| -(k as f64) * 1e-3).collect();
+        let fits = [
+            SideFit::fit(
+                &series(V3::new(-3.0, 10.0, 0.0), V3::new(500.0, 0.0, 0.0), g, &pre),
+                0.0,
+                g,
+            ),
+            SideFit::fit(
+                &series(V3::new(3.0, 0.0, 0.0), V3::new(-500.0, 0.0, 0.0), g, &pre),
+                0.0,
+                g,
+            ),
+            SideFit::fit(
+                &series(V3::new(-3.0, 10.0, 0.0), V3::new(500.0, 0.0, 0.0), g, &pre),
+                0.0,
+                g,
+            ),
+            SideFit::fit(
+                &series(V3::new(3.0, 0.0, 0.0), V3::new(-500.0, 0.0, 0.0), g, &pre),
+                0.0,
+                g,
+            ),
+        ];
+        assert!(matches!(
+            derive(&fits, 6.0, g),
+            Err(ImpactError::NoContact { .. })
+        ));
+    }
+}

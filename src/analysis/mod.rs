@@ -1,0 +1,535 @@
+//! Analysis: pure functions from recorded frames to a report. It never touches hardware — it
+//! reads sessions or TIFF stacks — which is what makes `replay` exact: the same frames and the
+//! same config give the same report, bit for bit.
+//!
+//! Pipeline: segment each view → sub-pixel circles (`circle`) → a/b labels and world centres
+//! (`tracking`) → ballistic fits before/after, impact, normal, e with uncertainties
+//! (`kinematics`) → `report`. Imperfect footage gives a report with warnings and a list of the
+//! frames that could not be measured; it fails only when no honest result exists (no spheres,
+//! no impact, too few frames).
+
+pub mod circle;
+pub mod detect;
+pub mod geometry;
+pub mod image;
+pub mod kinematics;
+pub mod report;
+pub mod tracking;
+
+use crate::config::Config;
+use crate::session::tiff::TiffStack;
+use crate::session::{FrameMeta, SessionError, SessionReader};
+use geometry::{View, ViewKind};
+use image::GreyImage;
+use kinematics::{derive, uncertainties, Fits, ImpactError, Series, SideFit, V3};
+use report::*;
+use tracking::FrameObs;
+
+#[derive(Debug, thiserror::Error)]
+pub enum AnalysisError {
+    #[error(transparent)]
+    Session(#[from] SessionError),
+    #[error("{source_name}: {message}")]
+    Input {
+        source_name: String,
+        message: String,
+    },
+    #[error("{source_name}: no impact found: {message}")]
+    NoImpact {
+        source_name: String,
+        message: String,
+    },
+}
+
+/// Frames to analyse, from a session or from footage recorded elsewhere.
+pub trait FrameSource {
+    fn source(&self) -> Source;
+    fn len(&self) -> usize;
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    fn meta(&self, i: usize) -> FrameMeta;
+    fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError>;
+    fn frames_dropped(&self) -> u64;
+    fn dimensions(&self) -> (u32, u32);
+    /// Things about the input a reader of the report must know.
+    fn warnings(&self) -> Vec<String>;
+}
+
+pub struct SessionSource {
+    pub reader: SessionReader,
+    buf: Vec<u8>,
+}
+
+impl SessionSource {
+    pub fn new(reader: SessionReader) -> Self {
+        SessionSource {
+            reader,
+            buf: Vec::new(),
+        }
+    }
+}
+
+impl FrameSource for SessionSource {
+    fn source(&self) -> Source {
+        Source {
+            kind: "session".into(),
+            name: self.reader.manifest.id.clone(),
+            frames: self.reader.frames.len() as u64,
+            frame_rate_hz: self.reader.manifest.camera.frame_rate_hz,
+            timestamps: "device".into(),
+        }
+    }
+    fn len(&self) -> usize {
+        self.reader.frames.len()
+    }
+    fn meta(&self, i: usize) -> FrameMeta {
+        self.reader.frames[i]
+    }
+    fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
+        self.reader.read_frame(i, &mut self.buf)?;
+        img.load(
+            &self.buf,
+            self.reader.width as usize,
+            self.reader.height as usize,
+            self.reader.bytes_per_pixel,
+        );
+        Ok(())
+    }
+    fn frames_dropped(&self) -> u64 {
+        crate::recorder::count_gaps(&self.reader.frames)
+    }
+    fn dimensions(&self) -> (u32, u32) {
+        (self.reader.width, self.reader.height)
+    }
+    fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if !self.reader.is_complete() {
+            w.push(format!(
+                "session status is {:?}{}: analysed the {} frames that were written",
+                self.reader.manifest.status,
+                self.reader
+                    .manifest
+                    .reason
+                    .as_ref()
+                    .map(|r| format!(" ({r})"))
+                    .unwrap_or_default(),
+                self.reader.frames.len()
+            ));
+        }
+        if self.reader.frames_truncated > 0 {
+            w.push(format!(
+                "{} frame(s) listed in the index were cut short on disk and ignored",
+                self.reader.frames_truncated
+            ));
+        }
+        w
+    }
+}
+
+pub struct TiffSource {
+    stack: TiffStack,
+    meta: Vec<FrameMeta>,
+    frame_rate_hz: f64,
+}
+
+impl TiffSource {
+    pub fn new(stack: TiffStack, frame_rate_hz: f64) -> Self {
+        let meta = stack.meta(frame_rate_hz);
+        TiffSource {
+            stack,
+            meta,
+            frame_rate_hz,
+        }
+    }
+}
+
+impl FrameSource for TiffSource {
+    fn source(&self) -> Source {
+        Source {
+            kind: "tiff".into(),
+            name: self
+                .stack
+                .path
+                .file_name()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            frames: self.stack.frames.len() as u64,
+            frame_rate_hz: self.frame_rate_hz,
+            timestamps: "frame number / camera.frame_rate_hz".into(),
+        }
+    }
+    fn len(&self) -> usize {
+        self.stack.frames.len()
+    }
+    fn meta(&self, i: usize) -> FrameMeta {
+        self.meta[i]
+    }
+    fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
+        img.load(
+            &self.stack.frames[i],
+            self.stack.width as usize,
+            self.stack.height as usize,
+            self.stack.bytes_per_pixel,
+        );
+        Ok(())
+    }
+    fn frames_dropped(&self) -> u64 {
+        0
+    }
+    fn dimensions(&self) -> (u32, u32) {
+        (self.stack.width, self.stack.height)
+    }
+    fn warnings(&self) -> Vec<String> {
+        Vec::new()
+    }
+}
+
+/// Per-sphere coordinate series (x, y, z) in world mm, built from the views: y from the direct
+/// view, z from the mirror, x from the direct view when there is one (the mirror's x is the
+/// calibration check).
+fn series(obs: &[FrameObs], views: &[View], s: usize, keep: &dyn Fn(f64) -> bool) -> [Series; 3] {
+    let mut out: [Series; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    let has_direct = views.iter().any(|v| v.kind == ViewKind::Direct);
+    for f in obs.iter().filter(|f| keep(f.time_s)) {
+        for (vi, view) in views.iter().enumerate() {
+            let Some(m) = f.spheres[s][vi] else { continue };
+            for (axis, val) in view.unproject(m.centre_px) {
+                if axis == 0 && has_direct && view.kind != ViewKind::Direct {
+                    continue;
+                }
+                out[axis].push((f.time_s, val));
+            }
+        }
+    }
+    out
+}
+
+/// The four ballistic fits for a given split. Each sphere's fit on each side uses only the time
+/// span in which the primary view (direct, when configured) saw it: the other view may see the
+/// sphere still rolling in its tube, where the ballistic model does not hold.
+fn fit_all(obs: &[FrameObs], views: &[View], t_ref: f64, split: f64, guard: f64, g: f64) -> Fits {
+    let side_fit = |s: usize, pre: bool| {
+        let on_side = |t: f64| {
+            if pre {
+                t < split - guard
+            } else {
+                t > split + guard
+            }
+        };
+        let seen: Vec<f64> = obs
+            .iter()
+            .filter(|f| on_side(f.time_s) && f.spheres[s][0].is_some())
+            .map(|f| f.time_s)
+            .collect();
+        let lo = seen.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = seen.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        SideFit::fit(
+            &series(obs, views, s, &|t| on_side(t) && t >= lo && t <= hi),
+            t_ref,
+            g,
+        )
+    };
+    [
+        side_fit(0, true),
+        side_fit(1, true),
+        side_fit(0, false),
+        side_fit(1, false),
+    ]
+}
+
+/// Analyses any frame source with the given config.
+pub fn analyze(
+    src: &mut dyn FrameSource,
+    cfg: &Config,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Report, AnalysisError> {
+    let info = src.source();
+    let input_err = |message: String| AnalysisError::Input {
+        source_name: info.name.clone(),
+        message,
+    };
+    if src.is_empty() {
+        return Err(input_err("no frames to analyse".into()));
+    }
+    let (w, h) = src.dimensions();
+    let views = geometry::views(cfg);
+    for v in &views {
+        let [x, y, vw, vh] = v.region;
+        if x + vw > w || y + vh > h {
+            return Err(input_err(format!(
+                "geometry.{}.region {:?} does not fit the {w}×{h} frames",
+                v.kind.name(),
+                v.region
+            )));
+        }
+    }
+    let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, progress)?;
+    let g = cfg.analysis.gravity_mm_s2;
+    let contact_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
+    let period = 1.0 / info.frame_rate_hz;
+    let primary = 0; // views[0] is direct when present, else the mirror
+
+    // Initial split: the frame where a and b are seen closest together in the primary view.
+    let mut closest: Option<(f64, f64)> = None;
+    for f in &obs {
+        if let (Some(a), Some(b)) = (f.spheres[0][primary], f.spheres[1][primary]) {
+            let d = (a.centre_px[0] - b.centre_px[0]).hypot(a.centre_px[1] - b.centre_px[1]);
+            if closest.is_none_or(|(_, dd)| d < dd) {
+                closest = Some((f.time_s, d));
+            }
+        }
+    }
+    let Some((mut split, _)) = closest else {
+        return Err(input_err(format!(
+            "spheres a and b were never both measured in the {} view ({} frames; see the geometry and threshold settings)",
+            views[primary].kind.name(),
+            obs.len()
+        )));
+    };
+    let min_side = cfg.analysis.min_frames_per_side as usize;
+    for _ in 0..8 {
+        let fits = fit_all(&obs, &views, split, split, 0.5 * period, g);
+        for (k, side) in fits.iter().enumerate() {
+            let n = side.axes[0].map(|l| l.n).unwrap_or(0);
+            if n < min_side {
+                let which = ["a before", "b before", "a after", "b after"][k];
+                return Err(input_err(format!(
+                    "only {n} usable frame(s) of sphere {which} the impact, need analysis.min_frames_per_side = {min_side}"
+                )));
+            }
+        }
+        let d = match derive(&fits, contact_mm, g) {
+            Ok(d) => d,
+            Err(ImpactError::NoContact { closest_mm }) => {
+                return Err(AnalysisError::NoImpact {
+                    source_name: info.name.clone(),
+                    message: format!(
+                        "the spheres' trajectories come no closer than {closest_mm:.2} mm, but contact is at {contact_mm:.2} mm"
+                    ),
+                })
+            }
+            Err(ImpactError::NotApproaching) => {
+                return Err(AnalysisError::NoImpact {
+                    source_name: info.name.clone(),
+                    message: "the spheres are not approaching each other before the closest frame".into(),
+                })
+            }
+        };
+        let new_split = split + d.tau_c;
+        let moved = (new_split - split).abs();
+        split = new_split;
+        if moved < 1e-7 {
+            break;
+        }
+    }
+    // Final fits referenced at the impact time, so p0 and v are the state at impact.
+    let fits = fit_all(&obs, &views, split, split, 0.5 * period, g);
+    let d = derive(&fits, contact_mm, g).map_err(|e| AnalysisError::NoImpact {
+        source_name: info.name.clone(),
+        message: format!("{e:?}"),
+    })?;
+    let sd = uncertainties(&fits, contact_mm, g).map_err(|e| AnalysisError::NoImpact {
+        source_name: info.name.clone(),
+        message: format!("{e:?}"),
+    })?;
+    let t_c = split + d.tau_c;
+
+    let mut warnings = src.warnings();
+    let three_d = views.len() == 2;
+    if !three_d {
+        warnings.push(format!(
+            "only the {} view is configured: results are 2-D (the missing coordinate is taken as constant)",
+            views[0].kind.name()
+        ));
+    }
+    let dropped = src.frames_dropped();
+    if dropped > 0 {
+        warnings.push(format!(
+            "{dropped} frame(s) were dropped by the camera (gaps in frame ids)"
+        ));
+    }
+    warnings.push(
+        "spin is not measured yet (marker tracking is not implemented): spins, beta, psi1, psi2 and branch_hint are null".into(),
+    );
+    let dt_check = (d.tau_intersection - d.tau_c).abs();
+    if dt_check > 2.0 * period {
+        warnings.push(format!(
+            "impact time from contact distance and from the trajectory intersection differ by {:.3} ms: check spheres.diameter_mm and px_per_mm",
+            dt_check * 1e3
+        ));
+    }
+
+    let est3 = |v: V3, s: V3| Estimate {
+        value: [v.x, v.y, v.z],
+        uncertainty: [s.x, s.y, s.z],
+    };
+    let impact_frame = obs
+        .iter()
+        .min_by(|p, q| (p.time_s - t_c).abs().total_cmp(&(q.time_s - t_c).abs()))
+        .map(|f| f.index)
+        .unwrap_or(0);
+    // 3-D RMS distance of the centres from the fitted trajectory.
+    let rms = |f: &SideFit| {
+        f.axes
+            .iter()
+            .flatten()
+            .map(|l| l.rms * l.rms)
+            .sum::<f64>()
+            .sqrt()
+    };
+    let diameters = |s: usize, kind: ViewKind| -> Option<Scalar> {
+        let vi = views.iter().position(|v| v.kind == kind)?;
+        let mut ds: Vec<f64> = obs
+            .iter()
+            .filter_map(|f| f.spheres[s][vi].map(|m| m.diameter_px))
+            .collect();
+        if ds.is_empty() {
+            return None;
+        }
+        ds.sort_by(f64::total_cmp);
+        let med = ds[ds.len() / 2];
+        let mut dev: Vec<f64> = ds.iter().map(|x| (x - med).abs()).collect();
+        dev.sort_by(f64::total_cmp);
+        let sigma = 1.4826 * dev[dev.len() / 2];
+        Some(Estimate {
+            value: med,
+            uncertainty: sigma / (ds.len() as f64).sqrt(),
+        })
+    };
+    let sphere = |s: usize| SphereResult {
+        velocity_pre_mm_s: est3(d.velocities[s], sd.velocities[s]),
+        velocity_post_mm_s: est3(d.velocities[2 + s], sd.velocities[2 + s]),
+        spin_pre_rad_s: None,
+        spin_post_rad_s: None,
+        diameter_px: ViewValues {
+            direct: diameters(s, ViewKind::Direct),
+            mirror: diameters(s, ViewKind::Mirror),
+        },
+        markers_tracked: Vec::new(),
+    };
+    let tracks: Vec<TrackFrame> = obs
+        .iter()
+        .filter(|f| f.spheres.iter().any(|s| s.iter().any(|m| m.is_some())))
+        .map(|f| {
+            let one = |s: usize| -> Option<SphereTrack> {
+                let per_view = |kind: ViewKind| {
+                    let vi = views.iter().position(|v| v.kind == kind)?;
+                    f.spheres[s][vi].map(|m| ViewTrack {
+                        centre_px: m.centre_px,
+                        uncertainty_px: m.sigma_px,
+                        diameter_px: m.diameter_px,
+                    })
+                };
+                let (direct, mirror) = (per_view(ViewKind::Direct), per_view(ViewKind::Mirror));
+                if direct.is_none() && mirror.is_none() {
+                    return None;
+                }
+                let mut centre: [Option<f64>; 3] = [None; 3];
+                for (vi, view) in views.iter().enumerate().rev() {
+                    if let Some(m) = f.spheres[s][vi] {
+                        for (axis, val) in view.unproject(m.centre_px) {
+                            centre[axis] = Some(val);
+                        }
+                    }
+                }
+                Some(SphereTrack {
+                    direct,
+                    mirror,
+                    centre_mm: centre,
+                })
+            };
+            TrackFrame {
+                frame: f.index,
+                frame_id: f.frame_id,
+                time_s: f.time_s,
+                a: one(0),
+                b: one(1),
+            }
+        })
+        .collect();
+    let calibration = calibration(&obs, &views);
+    let used = |k: usize| fits[k].axes[0].map(|l| l.n as u64).unwrap_or(0);
+    Ok(Report {
+        schema: REPORT_SCHEMA.into(),
+        software: Software {
+            name: "impactcam".into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+        },
+        source: info,
+        dimensionality: if three_d { "3d" } else { "2d" }.into(),
+        impact: Impact {
+            time_s: Estimate {
+                value: t_c,
+                uncertainty: sd.tau_c,
+            },
+            frame: impact_frame,
+            time_intersection_s: split + d.tau_intersection,
+            contact_distance_mm: contact_mm,
+        },
+        normal: est3(d.normal, sd.normal),
+        e: Some(Estimate {
+            value: d.e,
+            uncertainty: sd.e,
+        }),
+        beta: None,
+        psi1: None,
+        psi2: None,
+        branch_hint: None,
+        spheres: Spheres {
+            a: sphere(0),
+            b: sphere(1),
+        },
+        tracks,
+        quality: Quality {
+            frames_total: obs.len() as u64,
+            frames_dropped: dropped,
+            frames_used_pre: PerSphere {
+                a: used(0),
+                b: used(1),
+            },
+            frames_used_post: PerSphere {
+                a: used(2),
+                b: used(3),
+            },
+            fit_residual_rms_mm: FitResiduals {
+                a_pre: rms(&fits[0]),
+                b_pre: rms(&fits[1]),
+                a_post: rms(&fits[2]),
+                b_post: rms(&fits[3]),
+            },
+            calibration,
+            unmeasured,
+            warnings,
+        },
+    })
+}
+
+/// Mirror x minus direct x over frames where a sphere is measured in both views.
+fn calibration(obs: &[FrameObs], views: &[View]) -> Option<Calibration> {
+    let di = views.iter().position(|v| v.kind == ViewKind::Direct)?;
+    let mi = views.iter().position(|v| v.kind == ViewKind::Mirror)?;
+    let x = |vi: usize, px: [f64; 2]| {
+        views[vi]
+            .unproject(px)
+            .iter()
+            .find(|(a, _)| *a == 0)
+            .map(|(_, x)| *x)
+    };
+    let diffs: Vec<f64> = obs
+        .iter()
+        .flat_map(|f| (0..2).filter_map(move |s| Some((f.spheres[s][di]?, f.spheres[s][mi]?))))
+        .filter_map(|(d, m)| Some(x(mi, m.centre_px)? - x(di, d.centre_px)?))
+        .collect();
+    if diffs.is_empty() {
+        return None;
+    }
+    let n = diffs.len() as f64;
+    let mean = diffs.iter().sum::<f64>() / n;
+    let rms = (diffs.iter().map(|d| d * d).sum::<f64>() / n).sqrt();
+    Some(Calibration {
+        mirror_minus_direct_x_mean_mm: mean,
+        mirror_minus_direct_x_rms_mm: rms,
+        frames: diffs.len() as u64,
+    })
+}

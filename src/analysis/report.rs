@@ -1,0 +1,160 @@
+//! The report contract (`report.json`, schema "impactcam.report/1"): what users' scripts read.
+//! Every estimate is `{"value", "uncertainty"}` (one standard deviation, same shape); a quantity
+//! the data cannot give is null, with a warning in `quality.warnings` saying why.
+
+use serde::{Deserialize, Serialize};
+
+pub const REPORT_SCHEMA: &str = "impactcam.report/1";
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Estimate<T> {
+    pub value: T,
+    pub uncertainty: T,
+}
+
+pub type Scalar = Estimate<f64>;
+pub type Vector = Estimate<[f64; 3]>;
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Report {
+    pub schema: String,
+    pub software: Software,
+    pub source: Source,
+    /// "3d" with both views, "2d" when only one view is configured (z unknown).
+    pub dimensionality: String,
+    pub impact: Impact,
+    /// Contact normal at impact, unit vector from a to b.
+    pub normal: Vector,
+    pub e: Option<Scalar>,
+    pub beta: Option<Scalar>,
+    pub psi1: Option<Scalar>,
+    pub psi2: Option<Scalar>,
+    pub branch_hint: Option<String>,
+    pub spheres: Spheres,
+    pub tracks: Vec<TrackFrame>,
+    pub quality: Quality,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Software {
+    pub name: String,
+    pub version: String,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Source {
+    /// "session" or "tiff".
+    pub kind: String,
+    /// Session id or file name (not a path, so a moved session replays identically).
+    pub name: String,
+    pub frames: u64,
+    pub frame_rate_hz: f64,
+    /// Whether frame times come from device timestamps or from frame numbers / frame rate.
+    pub timestamps: String,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Impact {
+    /// First contact on the camera clock, s: where the pre-impact trajectories reach contact
+    /// distance.
+    pub time_s: Scalar,
+    /// Index (in this recording) of the frame nearest the impact.
+    pub frame: u64,
+    /// Cross-check: least-squares intersection of the pre- and post-impact separation lines, s.
+    pub time_intersection_s: f64,
+    pub contact_distance_mm: f64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Spheres {
+    pub a: SphereResult,
+    pub b: SphereResult,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct SphereResult {
+    /// Velocity at the impact time from the pre-impact ballistic fit, mm/s.
+    pub velocity_pre_mm_s: Vector,
+    pub velocity_post_mm_s: Vector,
+    pub spin_pre_rad_s: Option<Vector>,
+    pub spin_post_rad_s: Option<Vector>,
+    /// Measured silhouette diameter per view, px (median over frames, with its spread).
+    pub diameter_px: ViewValues,
+    /// Markers tracked, per frame of `tracks` (empty until marker tracking exists).
+    pub markers_tracked: Vec<u32>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ViewValues {
+    pub direct: Option<Scalar>,
+    pub mirror: Option<Scalar>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct TrackFrame {
+    /// Index in the recording.
+    pub frame: u64,
+    pub frame_id: u64,
+    pub time_s: f64,
+    pub a: Option<SphereTrack>,
+    pub b: Option<SphereTrack>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct SphereTrack {
+    pub direct: Option<ViewTrack>,
+    pub mirror: Option<ViewTrack>,
+    /// World centre, mm; a coordinate no view measured in this frame is null.
+    pub centre_mm: [Option<f64>; 3],
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ViewTrack {
+    /// Sub-pixel centre (u, v), full-frame pixel coordinates.
+    pub centre_px: [f64; 2],
+    pub uncertainty_px: [f64; 2],
+    pub diameter_px: f64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Quality {
+    pub frames_total: u64,
+    pub frames_dropped: u64,
+    pub frames_used_pre: PerSphere<u64>,
+    pub frames_used_post: PerSphere<u64>,
+    /// RMS distance of the measured centres from the fitted trajectories, mm.
+    pub fit_residual_rms_mm: FitResiduals,
+    /// Mirror-view x minus direct-view x over frames seen in both, mm.
+    pub calibration: Option<Calibration>,
+    /// Frames/views where a sphere could not be measured, and why.
+    pub unmeasured: Vec<Unmeasured>,
+    pub warnings: Vec<String>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct PerSphere<T> {
+    pub a: T,
+    pub b: T,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct FitResiduals {
+    pub a_pre: f64,
+    pub a_post: f64,
+    pub b_pre: f64,
+    pub b_post: f64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Calibration {
+    pub mirror_minus_direct_x_mean_mm: f64,
+    pub mirror_minus_direct_x_rms_mm: f64,
+    pub frames: u64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Unmeasured {
+    pub frame: u64,
+    pub view: String,
+    pub reason: String,
+}

@@ -1,0 +1,164 @@
+//! Benchmarks that print ratios against a baseline measured in the same run (machines here are
+//! noisy; absolute numbers mean little, ratios travel).
+//!
+//! `capture`: for 240×192 @ 1000 fps and 640×480 @ 2000 fps, frames/s of
+//! - the simulated camera alone (rendering) — the baseline for RAM,
+//! - the recorder's acquisition path into RAM (thread + bounded queue + RAM store),
+//! - a raw sequential write of the same frames to disk — the baseline for disk,
+//! - the recorder writing a session to disk (pixels, index, manifest),
+//!
+//! and a real-time run at the nominal rate into RAM that must drop nothing.
+
+use crate::camera::{self, Camera};
+use crate::config::Config;
+use crate::experiment::Rig;
+use crate::recorder::{self, stream_to_ram, Progress};
+use std::fmt::Write as _;
+use std::io::Write;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error("bench: {0}")]
+    Failed(String),
+}
+
+fn fail(e: impl std::fmt::Display) -> BenchError {
+    BenchError::Failed(e.to_string())
+}
+
+fn bench_config(width: u32, height: u32, fps: f64, pace: hw_sim::Pace, dir: &Path) -> Config {
+    let mut cfg = Config::default_config();
+    cfg.camera.width = width;
+    cfg.camera.height = height;
+    cfg.camera.frame_rate_hz = fps;
+    cfg.sim.pace = pace;
+    cfg.recording.dir = dir.to_path_buf();
+    cfg
+}
+
+fn sim_camera(cfg: &Config) -> Result<(Arc<hw_sim::SimLab>, Box<dyn Camera>), BenchError> {
+    let lab = hw_sim::SimLab::new(cfg.sim.clone(), crate::analysis::geometry::sim_scene(cfg))
+        .map_err(fail)?;
+    let cam = camera::open(cfg, Some(&lab)).map_err(fail)?;
+    Ok((lab, cam))
+}
+
+fn rate(frames: u64, d: Duration) -> f64 {
+    frames as f64 / d.as_secs_f64().max(1e-9)
+}
+
+pub fn capture(frames: usize, dir: &Path) -> Result<String, BenchError> {
+    let tmp = dir.join(format!(".impactcam-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).map_err(|e| fail(format!("{}: {e}", tmp.display())))?;
+    let result = capture_in(frames, &tmp);
+    let _ = std::fs::remove_dir_all(&tmp);
+    result
+}
+
+fn capture_in(frames: usize, tmp: &Path) -> Result<String, BenchError> {
+    let mut out = String::new();
+    let _ = writeln!(out, "impactcam bench capture — {frames} frames per measurement; ratios are against baselines from this run");
+    for (w, h, fps) in [(240u32, 192u32, 1000.0f64), (640, 480, 2000.0)] {
+        let free = bench_config(w, h, fps, hw_sim::Pace::FreeRun, tmp);
+        let frame_bytes = (w * h) as usize;
+        let _ = writeln!(
+            out,
+            "\n{w}×{h} Mono8 ({:.1} KiB/frame), nominal {fps} fps",
+            frame_bytes as f64 / 1024.0
+        );
+
+        // Camera alone.
+        let (_lab, mut cam) = sim_camera(&free)?;
+        cam.start().map_err(fail)?;
+        let t0 = Instant::now();
+        let mut buf = Vec::new();
+        for _ in 0..frames {
+            buf = cam.next_frame(buf).map_err(fail)?.data;
+        }
+        let cam_fps = rate(frames as u64, t0.elapsed());
+
+        // Acquisition path into RAM.
+        let (_lab, cam) = sim_camera(&free)?;
+        let ram = stream_to_ram(cam, frames, 1 << 16).map_err(fail)?;
+        let ram_fps = rate(ram.frames_received, ram.elapsed);
+
+        // Raw sequential write baseline.
+        let raw_path = tmp.join("raw.bin");
+        let data = vec![7u8; frame_bytes];
+        let t0 = Instant::now();
+        {
+            let mut f = std::fs::File::create(&raw_path).map_err(fail)?;
+            for _ in 0..frames {
+                f.write_all(&data).map_err(fail)?;
+            }
+            f.sync_data().map_err(fail)?;
+        }
+        let raw_fps = rate(frames as u64, t0.elapsed());
+        let _ = std::fs::remove_file(&raw_path);
+
+        // The recorder writing a session.
+        let mut cfg = free.clone();
+        cfg.recording.frames = frames as u32;
+        cfg.recording.pre_trigger_frames = 1;
+        let rig = Rig::open(&cfg).map_err(fail)?;
+        let mut fired_at = None;
+        let mut finished_at = None;
+        let rec = recorder::record(
+            rig.camera,
+            &rig.trigger,
+            &cfg,
+            Arc::new(AtomicBool::new(false)),
+            &mut |p| match p {
+                Progress::Fired { .. } => fired_at = Some(Instant::now()),
+                Progress::Finished { .. } => finished_at = Some(Instant::now()),
+                _ => {}
+            },
+        )
+        .map_err(fail)?;
+        let disk_time = match (fired_at, finished_at) {
+            (Some(a), Some(b)) => b - a,
+            _ => return Err(fail("recorder did not report firing and finishing")),
+        };
+        let disk_fps = rate(rec.frames_recorded, disk_time);
+
+        // Real time, nominal rate, into RAM: nothing may be lost.
+        let rt = bench_config(w, h, fps, hw_sim::Pace::RealTime, tmp);
+        let (_lab, cam) = sim_camera(&rt)?;
+        let rt_frames = (fps as usize).min(frames.max(500));
+        let queue = (rt.recording.ram_buffer_mb as usize * 1024 * 1024 / frame_bytes).max(8);
+        let live = stream_to_ram(cam, rt_frames, queue).map_err(fail)?;
+        let live_fps = rate(live.frames_received, live.elapsed);
+
+        let _ = writeln!(
+            out,
+            "  simulated camera alone         {cam_fps:>10.0} frames/s   (baseline for RAM)"
+        );
+        let _ = writeln!(
+            out,
+            "  recorder into RAM              {ram_fps:>10.0} frames/s   ratio {:.2} of camera alone; {} lost",
+            ram_fps / cam_fps,
+            ram.frames_lost_queue + ram.frames_missing_ids
+        );
+        let _ = writeln!(out, "  raw sequential write           {raw_fps:>10.0} frames/s   (baseline for disk, {:.0} MiB/s)", raw_fps * frame_bytes as f64 / 1048576.0);
+        let _ = writeln!(
+            out,
+            "  recorder into a session        {disk_fps:>10.0} frames/s   ratio {:.2} of raw write; {} dropped",
+            disk_fps / raw_fps,
+            rec.frames_dropped
+        );
+        let _ = writeln!(
+            out,
+            "  real time at {fps} fps into RAM: {} frames in {:.3} s ({:.3} of nominal rate), {} lost to the queue, {} missing ids",
+            live.frames_received,
+            live.elapsed.as_secs_f64(),
+            live_fps / fps,
+            live.frames_lost_queue,
+            live.frames_missing_ids
+        );
+    }
+    Ok(out)
+}

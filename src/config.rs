@@ -1,0 +1,566 @@
+//! The configuration: one TOML file, fully defaulted, with the embedded default compiled in.
+//! This module owns parsing and validation only; every error names the key and what was
+//! expected. It never touches hardware, so `impactcam config check` is safe anywhere.
+
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The embedded default: simulated camera and relay in the thesis's geometry.
+pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{origin}: {message}")]
+    Parse { origin: String, message: String },
+    #[error("{origin}: {message}")]
+    Invalid { origin: String, message: String },
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    #[serde(default)]
+    pub camera: CameraConfig,
+    #[serde(default)]
+    pub trigger: TriggerConfig,
+    #[serde(default)]
+    pub recording: RecordingConfig,
+    #[serde(default = "Geometry::thesis")]
+    pub geometry: Geometry,
+    #[serde(default)]
+    pub spheres: SpheresConfig,
+    #[serde(default)]
+    pub analysis: AnalysisConfig,
+    #[serde(default)]
+    pub daemon: DaemonConfig,
+    #[serde(default)]
+    pub sim: hw_sim::LabConfig,
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum CameraBackend {
+    Sim,
+    Aravis,
+    V4l,
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+pub enum PixelFormat {
+    Mono8,
+    Mono16,
+}
+
+impl PixelFormat {
+    pub fn bytes_per_pixel(self) -> usize {
+        match self {
+            PixelFormat::Mono8 => 1,
+            PixelFormat::Mono16 => 2,
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            PixelFormat::Mono8 => "Mono8",
+            PixelFormat::Mono16 => "Mono16",
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraConfig {
+    pub backend: CameraBackend,
+    /// Device id (Aravis) or path (V4L2); empty = the first camera found.
+    pub device: String,
+    pub width: u32,
+    pub height: u32,
+    pub pixel_format: PixelFormat,
+    pub frame_rate_hz: f64,
+    /// Exposure; None leaves the camera's own setting.
+    pub exposure_us: Option<f64>,
+}
+
+impl Default for CameraConfig {
+    fn default() -> Self {
+        CameraConfig {
+            backend: CameraBackend::Sim,
+            device: String::new(),
+            width: 240,
+            height: 192,
+            pixel_format: PixelFormat::Mono8,
+            frame_rate_hz: 1000.0,
+            exposure_us: None,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum TriggerBackend {
+    /// The simulator's relay: the serial LCUS protocol on a pseudo-terminal.
+    Sim,
+    /// A USB/serial relay module.
+    Serial,
+    /// Nothing is fired (footage of something released by hand or by other equipment).
+    None,
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum RelayProtocol {
+    /// LCUS / CH340 modules: `A0 ch state sum`, 9600 8N1.
+    Lcus,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct TriggerConfig {
+    pub backend: TriggerBackend,
+    /// Serial device of the relay module (backend = "serial").
+    pub port: String,
+    pub protocol: RelayProtocol,
+    pub channel: u8,
+    pub baud_rate: u32,
+    /// How long the relay is held closed to release the spheres.
+    pub relay_pulse_ms: f64,
+    /// Hard ceiling on any closing of the relay; `relay_pulse_ms` may not exceed it.
+    pub relay_pulse_ms_max: f64,
+}
+
+impl Default for TriggerConfig {
+    fn default() -> Self {
+        TriggerConfig {
+            backend: TriggerBackend::Sim,
+            port: String::new(),
+            protocol: RelayProtocol::Lcus,
+            channel: 1,
+            baud_rate: 9600,
+            relay_pulse_ms: 50.0,
+            relay_pulse_ms_max: 500.0,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct RecordingConfig {
+    /// Sessions are written under this directory.
+    pub dir: PathBuf,
+    /// Frames saved per experiment, pre-trigger frames included.
+    pub frames: u32,
+    /// Frames kept from before the relay fired.
+    pub pre_trigger_frames: u32,
+    /// Bound on frames held in RAM while the disk catches up.
+    pub ram_buffer_mb: u32,
+    /// How long to wait for the camera's first frames before refusing to fire.
+    pub arm_timeout_ms: u32,
+}
+
+impl Default for RecordingConfig {
+    fn default() -> Self {
+        RecordingConfig {
+            dir: PathBuf::from("sessions"),
+            frames: 280,
+            pre_trigger_frames: 20,
+            ram_buffer_mb: 1024,
+            arm_timeout_ms: 2000,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Geometry {
+    #[serde(default)]
+    pub direct: Option<ViewGeometry>,
+    #[serde(default)]
+    pub mirror: Option<ViewGeometry>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ViewGeometry {
+    /// u, v, width, height of this view inside the frame, px.
+    pub region: [u32; 4],
+    pub px_per_mm: f64,
+    /// Image (u, v) of the world origin.
+    pub origin_px: [f64; 2],
+    pub u_axis: String,
+    pub v_axis: String,
+}
+
+impl Geometry {
+    /// The thesis's layout, as in the embedded default.
+    pub fn thesis() -> Geometry {
+        Geometry {
+            direct: Some(ViewGeometry {
+                region: [0, 0, 240, 96],
+                px_per_mm: 2.1576,
+                origin_px: [119.5, 44.0],
+                u_axis: "+x".into(),
+                v_axis: "-y".into(),
+            }),
+            mirror: Some(ViewGeometry {
+                region: [0, 96, 240, 96],
+                px_per_mm: 2.1175,
+                origin_px: [121.0, 144.0],
+                u_axis: "+x".into(),
+                v_axis: "+z".into(),
+            }),
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SphereOverride {
+    pub diameter_mm: Option<f64>,
+    pub mass_g: Option<f64>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SpheresConfig {
+    pub diameter_mm: f64,
+    pub mass_g: f64,
+    pub material: Option<String>,
+    pub a: Option<SphereOverride>,
+    pub b: Option<SphereOverride>,
+}
+
+impl Default for SpheresConfig {
+    fn default() -> Self {
+        SpheresConfig {
+            diameter_mm: 6.35,
+            mass_g: 0.295,
+            material: None,
+            a: None,
+            b: None,
+        }
+    }
+}
+
+impl SpheresConfig {
+    /// (diameter_mm, mass_g) of sphere a (index 0) or b (index 1).
+    pub fn sphere(&self, i: usize) -> (f64, f64) {
+        let o = if i == 0 { &self.a } else { &self.b };
+        let d = o
+            .as_ref()
+            .and_then(|o| o.diameter_mm)
+            .unwrap_or(self.diameter_mm);
+        let m = o.as_ref().and_then(|o| o.mass_g).unwrap_or(self.mass_g);
+        (d, m)
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct AnalysisConfig {
+    /// Fewer usable frames than this on either side of the impact is an error.
+    pub min_frames_per_side: u32,
+    /// Gravity used in the ballistic fits, mm/s² along −y.
+    pub gravity_mm_s2: f64,
+    /// Detection threshold as a fraction of the way from background to the brightest pixel.
+    pub threshold_fraction: f64,
+}
+
+impl Default for AnalysisConfig {
+    fn default() -> Self {
+        AnalysisConfig {
+            min_frames_per_side: 5,
+            gravity_mm_s2: hw_sim::GRAVITY_MM_S2,
+            threshold_fraction: 0.5,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct DaemonConfig {
+    pub listen: String,
+    /// Bearer token required for state-changing requests off loopback.
+    pub token: Option<String>,
+}
+
+impl Default for DaemonConfig {
+    fn default() -> Self {
+        DaemonConfig {
+            listen: "127.0.0.1:8620".into(),
+            token: None,
+        }
+    }
+}
+
+/// A world axis with sign, as written in the config ("+x", "-z", …).
+pub fn parse_axis(s: &str) -> Option<[f64; 3]> {
+    let (sign, axis) = match s.as_bytes() {
+        [b'+', a] => (1.0, *a),
+        [b'-', a] => (-1.0, *a),
+        _ => return None,
+    };
+    Some(match axis {
+        b'x' => [sign, 0.0, 0.0],
+        b'y' => [0.0, sign, 0.0],
+        b'z' => [0.0, 0.0, sign],
+        _ => return None,
+    })
+}
+
+impl Config {
+    pub fn default_config() -> Config {
+        // The embedded file is tested to parse; a failure here is a build defect, not user input.
+        Config::from_toml_str(DEFAULT_TOML, "embedded default")
+            .expect("embedded default config is valid")
+    }
+
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.into(),
+            source,
+        })?;
+        Config::from_toml_str(&text, &path.display().to_string())
+    }
+
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Config, ConfigError> {
+        let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            origin: origin.into(),
+            message: e.message().to_string() + &span_hint(text, e.span()),
+        })?;
+        cfg.validate().map_err(|message| ConfigError::Invalid {
+            origin: origin.into(),
+            message,
+        })?;
+        Ok(cfg)
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Range and consistency checks; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        let c = &self.camera;
+        let pos = |key: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!(
+                    "{key}: {v} is not allowed, expected a positive number"
+                ))
+            }
+        };
+        pos("camera.frame_rate_hz", c.frame_rate_hz)?;
+        if c.frame_rate_hz > 1.0e6 {
+            return Err(format!(
+                "camera.frame_rate_hz: {} is out of range, expected at most 1000000",
+                c.frame_rate_hz
+            ));
+        }
+        if c.width == 0 || c.height == 0 || c.width > 16384 || c.height > 16384 {
+            return Err(format!(
+                "camera.width/height: {}×{} is out of range, expected 1 to 16384 px each",
+                c.width, c.height
+            ));
+        }
+        if let Some(e) = c.exposure_us {
+            pos("camera.exposure_us", e)?;
+        }
+        let t = &self.trigger;
+        pos("trigger.relay_pulse_ms", t.relay_pulse_ms)?;
+        pos("trigger.relay_pulse_ms_max", t.relay_pulse_ms_max)?;
+        if t.relay_pulse_ms > t.relay_pulse_ms_max {
+            return Err(format!(
+                "trigger.relay_pulse_ms: {} exceeds trigger.relay_pulse_ms_max = {}",
+                t.relay_pulse_ms, t.relay_pulse_ms_max
+            ));
+        }
+        if t.relay_pulse_ms_max > 10_000.0 {
+            return Err(format!(
+                "trigger.relay_pulse_ms_max: {} is out of range, expected at most 10000",
+                t.relay_pulse_ms_max
+            ));
+        }
+        if t.backend == TriggerBackend::Serial && t.port.is_empty() {
+            return Err("trigger.port: missing, expected the relay module's serial device (e.g. \"/dev/ttyUSB0\") for backend = \"serial\"".into());
+        }
+        if t.channel == 0 {
+            return Err("trigger.channel: 0 is not allowed, expected 1 or more".into());
+        }
+        let r = &self.recording;
+        if r.frames < 2 {
+            return Err(format!(
+                "recording.frames: {} is too few, expected at least 2",
+                r.frames
+            ));
+        }
+        if r.pre_trigger_frames >= r.frames {
+            return Err(format!(
+                "recording.pre_trigger_frames: {} must be less than recording.frames = {}",
+                r.pre_trigger_frames, r.frames
+            ));
+        }
+        if r.ram_buffer_mb == 0 {
+            return Err(
+                "recording.ram_buffer_mb: 0 is not allowed, expected a positive number of MiB"
+                    .into(),
+            );
+        }
+        if self.geometry.direct.is_none() && self.geometry.mirror.is_none() {
+            return Err(
+                "geometry: no view given, expected [geometry.direct] and/or [geometry.mirror]"
+                    .into(),
+            );
+        }
+        for (name, view, plane) in [
+            ("direct", &self.geometry.direct, 'y'),
+            ("mirror", &self.geometry.mirror, 'z'),
+        ] {
+            let Some(v) = view else { continue };
+            let key = format!("geometry.{name}");
+            pos(&format!("{key}.px_per_mm"), v.px_per_mm)?;
+            let [u0, v0, w, h] = v.region;
+            if w == 0 || h == 0 || u0 + w > c.width || v0 + h > c.height {
+                return Err(format!(
+                    "{key}.region: {:?} does not fit in the {}×{} frame, expected [u, v, width, height] inside it",
+                    v.region, c.width, c.height
+                ));
+            }
+            if !v.origin_px.iter().all(|x| x.is_finite()) {
+                return Err(format!("{key}.origin_px: expected two finite numbers"));
+            }
+            let ua = parse_axis(&v.u_axis).ok_or_else(|| {
+                format!(
+                    "{key}.u_axis: {:?} is not an axis, expected one of +x -x +y -y +z -z",
+                    v.u_axis
+                )
+            })?;
+            let va = parse_axis(&v.v_axis).ok_or_else(|| {
+                format!(
+                    "{key}.v_axis: {:?} is not an axis, expected one of +x -x +y -y +z -z",
+                    v.v_axis
+                )
+            })?;
+            let uses = |a: [f64; 3], axis: char| match axis {
+                'x' => a[0] != 0.0,
+                'y' => a[1] != 0.0,
+                _ => a[2] != 0.0,
+            };
+            if !(uses(ua, 'x') || uses(ua, plane))
+                || !(uses(va, 'x') || uses(va, plane))
+                || ua == va
+                || ua.iter().zip(va.iter()).all(|(a, b)| a.abs() == b.abs())
+            {
+                return Err(format!(
+                    "{key}: u_axis {:?} and v_axis {:?} must be the two different axes of the world x–{plane} plane this view sees",
+                    v.u_axis, v.v_axis
+                ));
+            }
+        }
+        for i in 0..2 {
+            let (d, m) = self.spheres.sphere(i);
+            let which = if i == 0 { "a" } else { "b" };
+            pos(&format!("spheres.{which}.diameter_mm"), d)?;
+            pos(&format!("spheres.{which}.mass_g"), m)?;
+        }
+        let a = &self.analysis;
+        if a.min_frames_per_side < 2 {
+            return Err(format!(
+                "analysis.min_frames_per_side: {} is too few, expected at least 2",
+                a.min_frames_per_side
+            ));
+        }
+        pos("analysis.gravity_mm_s2", a.gravity_mm_s2)?;
+        if !(a.threshold_fraction > 0.05 && a.threshold_fraction < 0.95) {
+            return Err(format!(
+                "analysis.threshold_fraction: {} is out of range, expected 0.05 to 0.95",
+                a.threshold_fraction
+            ));
+        }
+        if let Some(t) = &self.daemon.token {
+            if t.len() < 16 {
+                return Err("daemon.token: too short, expected at least 16 characters".into());
+            }
+        }
+        self.sim.validate()?;
+        Ok(())
+    }
+}
+
+fn span_hint(text: &str, span: Option<std::ops::Range<usize>>) -> String {
+    match span {
+        Some(s) => {
+            let line = text[..s.start.min(text.len())].matches('\n').count() + 1;
+            format!(" (line {line})")
+        }
+        None => String::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn embedded_default_is_valid_and_round_trips() {
+        let c = Config::default_config();
+        let again = Config::from_toml_str(&c.to_toml(), "round trip").unwrap();
+        assert_eq!(c, again);
+        assert!(c.geometry.direct.is_some() && c.geometry.mirror.is_some());
+    }
+
+    #[test]
+    fn struct_defaults_equal_the_embedded_default() {
+        // A partial config is filled from the structs' defaults; they must say what the embedded
+        // file says, or `run` and `run --config partial.toml` would disagree silently.
+        assert_eq!(
+            Config::from_toml_str("", "empty").unwrap(),
+            Config::default_config()
+        );
+    }
+
+    #[test]
+    fn typo_key_is_named() {
+        let e = Config::from_toml_str("[camera]\nfram_rate_hz = 100.0\n", "x.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("fram_rate_hz") && e.contains("x.toml") && e.contains("line 2"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn negative_frame_rate_is_named() {
+        let e = Config::from_toml_str("[camera]\nframe_rate_hz = -5.0\n", "x.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("camera.frame_rate_hz"), "{e}");
+    }
+
+    #[test]
+    fn pulse_above_max_is_refused() {
+        let e = Config::from_toml_str("[trigger]\nrelay_pulse_ms = 900.0\n", "x.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("relay_pulse_ms_max"), "{e}");
+    }
+
+    #[test]
+    fn one_view_only_is_allowed() {
+        let t = "[geometry.direct]\nregion=[0,0,240,96]\npx_per_mm=2.0\norigin_px=[120.0,48.0]\nu_axis=\"+x\"\nv_axis=\"-y\"\n";
+        let c = Config::from_toml_str(t, "x.toml").unwrap();
+        assert!(c.geometry.mirror.is_none());
+    }
+
+    #[test]
+    fn mirror_axes_must_be_x_z() {
+        let t = "[geometry.mirror]\nregion=[0,96,240,96]\npx_per_mm=2.0\norigin_px=[120.0,140.0]\nu_axis=\"+x\"\nv_axis=\"-y\"\n";
+        let e = Config::from_toml_str(t, "x.toml").unwrap_err().to_string();
+        assert!(e.contains("geometry.mirror"), "{e}");
+    }
+}

@@ -1,0 +1,13 @@
+//! impactcam — sphere-collision experiments end to end: arm a high-speed camera, fire the relay
+//! that releases two spheres, record the frames, and measure the collision (e, and with spin,
+//! β, ψ1, ψ2). See docs/ARCHITECTURE.md for the map.
+
+pub mod analysis;
+pub mod bench;
+pub mod camera;
+pub mod config;
+pub mod experiment;
+pub mod recorder;
+pub mod session;
+pub mod summary;
+pub mod trigger;

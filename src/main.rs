@@ -1,0 +1,317 @@
+//! The impactcam command line: parses arguments and calls the library.
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand};
+use impactcam::config::Config;
+use impactcam::experiment::{self, Event};
+use impactcam::recorder::Progress;
+use impactcam::summary::{bar, report_text, Status};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+#[derive(Parser)]
+#[command(
+    name = "impactcam",
+    version,
+    about = "Sphere-collision experiments: camera, relay, recording, and e/β/ψ"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// One experiment: arm the camera, fire the relay, record, analyse, print the result.
+    Run {
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Print the report as JSON on stdout instead of the summary.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Arm, fire and record only (no analysis).
+    Capture {
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Re-analyse a recorded session with its own config; the report must equal the recorded one.
+    Replay {
+        session: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Analyse a session or a multi-page greyscale TIFF recorded elsewhere.
+    Analyze {
+        path: PathBuf,
+        #[arg(long)]
+        config: PathBuf,
+        #[arg(long)]
+        json: bool,
+        /// Where report.json goes (default: beside the input).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Export a session's frames as a multi-page TIFF (Fiji/ImageJ opens it).
+    Export {
+        session: PathBuf,
+        #[arg(long)]
+        tiff: PathBuf,
+    },
+    /// Configuration: check a file, or print the embedded default.
+    Config {
+        #[command(subcommand)]
+        action: ConfigAction,
+    },
+    /// Benchmarks, printed as ratios against a baseline measured in the same run.
+    Bench {
+        #[command(subcommand)]
+        what: BenchWhat,
+    },
+}
+
+#[derive(Subcommand)]
+enum ConfigAction {
+    /// Validate a config file without touching hardware.
+    Check { file: PathBuf },
+    /// Print the embedded default config.
+    Default,
+}
+
+#[derive(Subcommand)]
+enum BenchWhat {
+    /// Recorder throughput into RAM and onto disk against a raw sequential write.
+    Capture {
+        /// Frames per measurement.
+        #[arg(long, default_value_t = 2000)]
+        frames: usize,
+        /// Where the disk measurements write (a temporary directory inside it).
+        #[arg(long, default_value = ".")]
+        dir: PathBuf,
+    },
+}
+
+fn load_config(path: Option<&Path>) -> Result<Config> {
+    Ok(match path {
+        Some(p) => Config::load(p)?,
+        None => Config::default_config(),
+    })
+}
+
+fn abort_flag() -> Arc<AtomicBool> {
+    let abort = Arc::new(AtomicBool::new(false));
+    let a = abort.clone();
+    // If the handler cannot be installed, Ctrl-C kills the process; the relay pulse is short and
+    // the relay module is opened again on the next start.
+    if let Err(e) = ctrlc::set_handler(move || a.store(true, Ordering::SeqCst)) {
+        tracing::warn!("cannot install the Ctrl-C handler: {e}");
+    }
+    abort
+}
+
+fn progress_printer(status: &mut Status) -> impl FnMut(Event) + '_ {
+    move |ev| match ev {
+        Event::Recorder(Progress::Armed { frames_seen }) => status.line(&format!(
+            "armed: camera delivering frames ({frames_seen} seen)"
+        )),
+        Event::Recorder(Progress::Fired { session }) => status.line(&format!(
+            "fired: relay closed; recording into {}",
+            session.display()
+        )),
+        Event::Recorder(Progress::Frames { recorded, total }) => status.live(&format!(
+            "recording {}",
+            bar(recorded as usize, total as usize, 30)
+        )),
+        Event::Recorder(Progress::Finished { recorded, dropped }) => {
+            status.line(&format!("recorded {recorded} frames, {dropped} dropped"))
+        }
+        Event::Analysing {
+            frames_done,
+            frames_total,
+        } => {
+            if frames_done % 10 == 0 || frames_done == frames_total {
+                status.live(&format!("analysing {}", bar(frames_done, frames_total, 30)))
+            }
+        }
+    }
+}
+
+fn main() {
+    tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .init();
+    let cli = Cli::parse();
+    match real_main(cli) {
+        Ok(code) => std::process::exit(code),
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::exit(1);
+        }
+    }
+}
+
+fn real_main(cli: Cli) -> Result<i32> {
+    match cli.command {
+        Command::Run { config, json } => {
+            let cfg = load_config(config.as_deref())?;
+            let abort = abort_flag();
+            let mut status = Status::new();
+            let result = experiment::run(&cfg, abort, &mut progress_printer(&mut status));
+            let (rec, report) = match result {
+                Ok(r) => r,
+                Err(experiment::ExperimentError::Record(
+                    impactcam::recorder::RecordError::Interrupted(dir),
+                )) => {
+                    eprintln!(
+                        "interrupted: relay released; session {} marked incomplete",
+                        dir.display()
+                    );
+                    return Ok(130);
+                }
+                Err(e) => return Err(e.into()),
+            };
+            status.line(&format!("analysed {} frames", report.quality.frames_total));
+            if json {
+                print!("{}", experiment::report_json(&report));
+            } else {
+                print!("{}", report_text(&report));
+                println!("session     {}", rec.session_dir.display());
+                println!(
+                    "report      {}",
+                    rec.session_dir.join("report.json").display()
+                );
+            }
+            Ok(0)
+        }
+        Command::Capture { config } => {
+            let cfg = load_config(config.as_deref())?;
+            let abort = abort_flag();
+            let mut status = Status::new();
+            let result = experiment::capture(&cfg, abort, &mut progress_printer(&mut status));
+            match result {
+                Ok(rec) => {
+                    println!(
+                        "session {} ({:?}): {} frames recorded, {} dropped",
+                        rec.session_dir.display(),
+                        rec.status,
+                        rec.frames_recorded,
+                        rec.frames_dropped
+                    );
+                    Ok(if rec.status == impactcam::session::Status::Complete {
+                        0
+                    } else {
+                        1
+                    })
+                }
+                Err(experiment::ExperimentError::Record(
+                    impactcam::recorder::RecordError::Interrupted(dir),
+                )) => {
+                    eprintln!(
+                        "interrupted: relay released; session {} marked incomplete",
+                        dir.display()
+                    );
+                    Ok(130)
+                }
+                Err(e) => Err(e.into()),
+            }
+        }
+        Command::Replay { session, json } => {
+            let report = experiment::analyze_session(&session, None, &mut |_, _| {})?;
+            let text = experiment::report_json(&report);
+            let recorded = std::fs::read_to_string(session.join("report.json")).ok();
+            if json {
+                print!("{text}");
+            } else {
+                print!("{}", report_text(&report));
+            }
+            match recorded {
+                Some(r) if r == text => eprintln!("replay: identical to the recorded report.json"),
+                Some(_) => {
+                    eprintln!("replay: DIFFERS from the recorded report.json");
+                    return Ok(2);
+                }
+                None => eprintln!("replay: the session has no report.json to compare with"),
+            }
+            Ok(0)
+        }
+        Command::Analyze {
+            path,
+            config,
+            json,
+            out,
+        } => {
+            let cfg = Config::load(&config)?;
+            let report = if path.is_dir() {
+                experiment::analyze_session(&path, Some(&cfg), &mut |_, _| {})?
+            } else {
+                let stack = impactcam::session::tiff::TiffStack::open(&path)?;
+                let mut src = impactcam::analysis::TiffSource::new(stack, cfg.camera.frame_rate_hz);
+                impactcam::analysis::analyze(&mut src, &cfg, &mut |_, _| {})?
+            };
+            let out_dir = match out {
+                Some(d) => d,
+                None if path.is_dir() => path.clone(),
+                None => path
+                    .parent()
+                    .map(Path::to_path_buf)
+                    .unwrap_or_else(|| PathBuf::from(".")),
+            };
+            std::fs::create_dir_all(&out_dir)
+                .with_context(|| format!("{}: cannot create", out_dir.display()))?;
+            let target = if path.is_dir() || out_dir != path.parent().unwrap_or(Path::new("")) {
+                out_dir.join("report.json")
+            } else {
+                let stem = path
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                out_dir.join(format!("{stem}.report.json"))
+            };
+            impactcam::session::write_atomic(&target, experiment::report_json(&report).as_bytes())?;
+            if json {
+                print!("{}", experiment::report_json(&report));
+            } else {
+                print!("{}", report_text(&report));
+                println!("report      {}", target.display());
+            }
+            Ok(0)
+        }
+        Command::Export { session, tiff } => {
+            let mut reader = impactcam::session::SessionReader::open(&session)?;
+            let n = impactcam::session::tiff::export_session(&mut reader, &tiff)?;
+            println!("wrote {n} frames to {}", tiff.display());
+            Ok(0)
+        }
+        Command::Config { action } => match action {
+            ConfigAction::Check { file } => {
+                let cfg = Config::load(&file)?;
+                println!(
+                    "{}: valid ({} camera {}×{} {} at {} Hz, {} trigger)",
+                    file.display(),
+                    format!("{:?}", cfg.camera.backend).to_lowercase(),
+                    cfg.camera.width,
+                    cfg.camera.height,
+                    cfg.camera.pixel_format.name(),
+                    cfg.camera.frame_rate_hz,
+                    format!("{:?}", cfg.trigger.backend).to_lowercase()
+                );
+                Ok(0)
+            }
+            ConfigAction::Default => {
+                print!("{}", impactcam::config::DEFAULT_TOML);
+                Ok(0)
+            }
+        },
+        Command::Bench { what } => match what {
+            BenchWhat::Capture { frames, dir } => {
+                if frames < 10 {
+                    bail!("--frames: {frames} is too few, expected at least 10");
+                }
+                print!("{}", impactcam::bench::capture(frames, &dir)?);
+                Ok(0)
+            }
+        },
+    }
+}

@@ -1,0 +1,385 @@
+//! The recorder: arms the camera, fires the trigger once frames flow, and streams the window
+//! around the firing into a session.
+//!
+//! Acquisition runs on its own thread and hands frames over a bounded queue (the RAM ring: its
+//! capacity is `recording.ram_buffer_mb`), so the disk never paces the camera; a frame that
+//! finds the queue full is lost, counted, and shows as a gap in the saved frame ids. Before the
+//! firing only the last `pre_trigger_frames` frames are kept; after it every frame is appended
+//! to the session as it arrives, so a crash keeps everything written so far.
+
+use crate::camera::{Camera, CameraError, Frame};
+use crate::config::Config;
+use crate::session::{FrameMeta, ManifestTrigger, SessionError, SessionWriter, Status};
+use crate::trigger::{CameraLive, Trigger, TriggerError};
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, TrySendError};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    #[error("camera delivered {frames} frame(s) within recording.arm_timeout_ms = {timeout_ms} ms; relay not fired: {detail}")]
+    NotArmed {
+        frames: u64,
+        timeout_ms: u32,
+        detail: String,
+    },
+    #[error(transparent)]
+    Camera(#[from] CameraError),
+    #[error(transparent)]
+    Trigger(#[from] TriggerError),
+    #[error(transparent)]
+    Session(#[from] SessionError),
+    #[error("interrupted; the session in {0} is marked incomplete, its frames are kept")]
+    Interrupted(PathBuf),
+}
+
+/// What the recorder tells whoever watches (progress bar, daemon events).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Progress {
+    Armed { frames_seen: u64 },
+    Fired { session: PathBuf },
+    Frames { recorded: u64, total: u64 },
+    Finished { recorded: u64, dropped: u64 },
+}
+
+pub struct Recording {
+    pub session_dir: PathBuf,
+    pub status: Status,
+    pub reason: Option<String>,
+    pub frames_recorded: u64,
+    pub frames_dropped: u64,
+}
+
+struct Acquisition {
+    rx: Receiver<Result<Frame, CameraError>>,
+    recycle: std::sync::mpsc::Sender<Vec<u8>>,
+    stop: Arc<AtomicBool>,
+    queue_full_losses: Arc<AtomicU64>,
+    thread: Option<JoinHandle<Box<dyn Camera>>>,
+}
+
+impl Acquisition {
+    fn start(mut camera: Box<dyn Camera>, queue_frames: usize) -> Result<Acquisition, CameraError> {
+        camera.start()?;
+        let (tx, rx) = sync_channel::<Result<Frame, CameraError>>(queue_frames);
+        let (recycle, recycled) = std::sync::mpsc::channel::<Vec<u8>>();
+        let stop = Arc::new(AtomicBool::new(false));
+        let losses = Arc::new(AtomicU64::new(0));
+        let (stop2, losses2) = (stop.clone(), losses.clone());
+        let thread = std::thread::Builder::new()
+            .name("acquisition".into())
+            .spawn(move || {
+                while !stop2.load(Ordering::Relaxed) {
+                    let buf = recycled.try_recv().unwrap_or_default();
+                    match camera.next_frame(buf) {
+                        Ok(f) => match tx.try_send(Ok(f)) {
+                            Ok(()) => {}
+                            Err(TrySendError::Full(_)) => {
+                                losses2.fetch_add(1, Ordering::Relaxed);
+                            }
+                            Err(TrySendError::Disconnected(_)) => break,
+                        },
+                        Err(e) => {
+                            let _ = tx.send(Err(e));
+                            break;
+                        }
+                    }
+                }
+                let _ = camera.stop();
+                camera
+            })
+            .map_err(|e| CameraError::Failed(format!("cannot start acquisition thread: {e}")))?;
+        Ok(Acquisition {
+            rx,
+            recycle,
+            stop,
+            queue_full_losses: losses,
+            thread: Some(thread),
+        })
+    }
+
+    /// Stops streaming and gives the camera back.
+    fn finish(mut self) -> Option<Box<dyn Camera>> {
+        self.stop.store(true, Ordering::Relaxed);
+        // Unblock a sender waiting on a full queue.
+        while self.rx.try_recv().is_ok() {}
+        self.thread.take().and_then(|t| t.join().ok())
+    }
+}
+
+impl Drop for Acquisition {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+}
+
+/// Arms, fires, records. On success the session is complete; on a camera failure after firing
+/// it is finalised as incomplete (frames kept) and returned with that status.
+pub fn record(
+    camera: Box<dyn Camera>,
+    trigger: &Trigger,
+    cfg: &Config,
+    abort: Arc<AtomicBool>,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Recording, RecordError> {
+    let info = camera.info();
+    let rec = &cfg.recording;
+    let frame_bytes = info.frame_bytes().max(1);
+    let queue_frames = ((rec.ram_buffer_mb as usize * 1024 * 1024) / frame_bytes).clamp(8, 1 << 20);
+    let acq = Acquisition::start(camera, queue_frames)?;
+    let period = Duration::from_secs_f64(1.0 / info.frame_rate_hz);
+    let stall_timeout = (period * 50).max(Duration::from_secs(1));
+
+    // Arm: frames must flow before anything is fired.
+    let arm_deadline = std::time::Instant::now() + Duration::from_millis(rec.arm_timeout_ms as u64);
+    let mut ring: VecDeque<Frame> = VecDeque::new();
+    let keep = (rec.pre_trigger_frames as usize).max(1);
+    let mut seen = 0u64;
+    while seen < 2 || ring.len() < keep {
+        if abort.load(Ordering::Relaxed) {
+            acq.finish();
+            return Err(RecordError::NotArmed {
+                frames: seen,
+                timeout_ms: rec.arm_timeout_ms,
+                detail: "interrupted".into(),
+            });
+        }
+        let left = arm_deadline.saturating_duration_since(std::time::Instant::now());
+        match acq.rx.recv_timeout(left.min(Duration::from_millis(100))) {
+            Ok(Ok(f)) => {
+                seen += 1;
+                ring.push_back(f);
+                while ring.len() > keep {
+                    if let Some(old) = ring.pop_front() {
+                        let _ = acq.recycle.send(old.data);
+                    }
+                }
+            }
+            Ok(Err(e)) => {
+                acq.finish();
+                return Err(RecordError::NotArmed {
+                    frames: seen,
+                    timeout_ms: rec.arm_timeout_ms,
+                    detail: e.to_string(),
+                });
+            }
+            Err(RecvTimeoutError::Timeout) if std::time::Instant::now() < arm_deadline => {}
+            Err(_) => {
+                acq.finish();
+                return Err(RecordError::NotArmed {
+                    frames: seen,
+                    timeout_ms: rec.arm_timeout_ms,
+                    detail: "no frames arrived".into(),
+                });
+            }
+        }
+    }
+    progress(Progress::Armed { frames_seen: seen });
+    if rec.pre_trigger_frames == 0 {
+        ring.clear();
+    }
+
+    let pulse = trigger.fire(&CameraLive::confirmed(seen), abort.clone())?;
+    let mut trig = ManifestTrigger::new(&trigger.info(), trigger.pulse_ms());
+    if let Some(last) = ring.back() {
+        let dt = pulse.closed_at().saturating_duration_since(last.host_time);
+        trig.fired_at_ns = Some(last.timestamp_ns + dt.as_nanos() as u64);
+    }
+    let mut session = match SessionWriter::create(&rec.dir, &info, trig, cfg) {
+        Ok(s) => s,
+        Err(e) => {
+            drop(pulse);
+            acq.finish();
+            return Err(e.into());
+        }
+    };
+    progress(Progress::Fired {
+        session: session.dir().to_path_buf(),
+    });
+
+    let total = rec.frames as u64;
+    let mut saved: Vec<FrameMeta> = Vec::with_capacity(rec.frames as usize);
+    let mut failure: Option<String> = None;
+    let mut pulse = Some(pulse);
+    let append = |session: &mut SessionWriter,
+                  f: Frame,
+                  saved: &mut Vec<FrameMeta>|
+     -> Result<(), SessionError> {
+        let meta = FrameMeta {
+            frame_id: f.frame_id,
+            timestamp_ns: f.timestamp_ns,
+        };
+        session.append(meta, &f.data)?;
+        saved.push(meta);
+        let _ = acq.recycle.send(f.data);
+        Ok(())
+    };
+    let mut write_error = None;
+    let mut last_frame_at = std::time::Instant::now();
+    for f in ring.drain(..) {
+        if let Err(e) = append(&mut session, f, &mut saved) {
+            write_error = Some(e);
+            break;
+        }
+    }
+    while write_error.is_none() && (saved.len() as u64) < total {
+        if abort.load(Ordering::Relaxed) {
+            failure = Some("interrupted by the user".into());
+            break;
+        }
+        // The pulse ends on its own timer; collect it as soon as it has, so errors surface.
+        if pulse.as_ref().is_some_and(|p| {
+            p.closed_at().elapsed() > Duration::from_millis(trigger.pulse_ms() as u64 + 5)
+        }) {
+            if let Some(p) = pulse.take() {
+                if let Err(e) = p.finish() {
+                    failure = Some(format!("relay did not confirm opening: {e}"));
+                    break;
+                }
+            }
+        }
+        match acq.rx.recv_timeout(Duration::from_millis(100)) {
+            Ok(Ok(f)) => {
+                last_frame_at = std::time::Instant::now();
+                if let Err(e) = append(&mut session, f, &mut saved) {
+                    write_error = Some(e);
+                    break;
+                }
+                let n = saved.len() as u64;
+                if n % 10 == 0 || n == total {
+                    progress(Progress::Frames { recorded: n, total });
+                }
+            }
+            Ok(Err(e)) => {
+                failure = Some(e.to_string());
+                break;
+            }
+            Err(RecvTimeoutError::Timeout) => {
+                if last_frame_at.elapsed() > stall_timeout {
+                    failure = Some(format!(
+                        "camera stopped delivering frames for {} ms",
+                        stall_timeout.as_millis()
+                    ));
+                    break;
+                }
+            }
+            Err(RecvTimeoutError::Disconnected) => {
+                failure = Some("acquisition stopped unexpectedly".into());
+                break;
+            }
+        }
+    }
+    let pulse_result = pulse.take().map(|p| p.cancel());
+    let losses = acq.queue_full_losses.load(Ordering::Relaxed);
+    let camera = acq.finish();
+
+    let dropped = count_gaps(&saved);
+    {
+        let m = session.manifest_mut();
+        m.frames_dropped = dropped;
+        if let Some(fired) = m.trigger.fired_at_ns {
+            m.trigger.fired_in_frame = saved
+                .iter()
+                .position(|f| f.timestamp_ns + period.as_nanos() as u64 / 2 >= fired)
+                .map(|i| i as u64);
+        }
+    }
+    if let Some(cam) = &camera {
+        let pairs: Vec<(u64, u64)> = saved.iter().map(|m| (m.frame_id, m.timestamp_ns)).collect();
+        if let Some(truth) = cam.ground_truth(&pairs) {
+            let text = serde_json::to_string_pretty(&truth).unwrap_or_default();
+            crate::session::write_atomic(&session.dir().join("truth.json"), text.as_bytes())?;
+        }
+    }
+    if let Some(Err(e)) = pulse_result {
+        failure.get_or_insert(format!("relay did not confirm opening: {e}"));
+    }
+    if let Some(e) = write_error {
+        let _ = session.finish(Status::Failed, Some(e.to_string()));
+        return Err(e.into());
+    }
+    let interrupted = abort.load(Ordering::Relaxed);
+    let (status, reason) = match failure {
+        None => (Status::Complete, None),
+        Some(r) => (Status::Incomplete, Some(r)),
+    };
+    if losses > 0 {
+        tracing::warn!(losses, "frames lost because the RAM buffer was full");
+    }
+    let recorded = saved.len() as u64;
+    let dir = session.finish(status, reason.clone())?;
+    progress(Progress::Finished { recorded, dropped });
+    if interrupted {
+        return Err(RecordError::Interrupted(dir));
+    }
+    Ok(Recording {
+        session_dir: dir,
+        status,
+        reason,
+        frames_recorded: recorded,
+        frames_dropped: dropped,
+    })
+}
+
+/// Frames lost between saved frames, from the device frame ids.
+pub fn count_gaps(frames: &[FrameMeta]) -> u64 {
+    frames
+        .windows(2)
+        .map(|w| w[1].frame_id.saturating_sub(w[0].frame_id + 1))
+        .sum()
+}
+
+/// What `stream_to_ram` measured.
+pub struct RamStats {
+    pub frames_received: u64,
+    /// Frames lost because the queue was full (the consumer fell behind).
+    pub frames_lost_queue: u64,
+    /// Gaps in the device frame ids among the frames received.
+    pub frames_missing_ids: u64,
+    pub elapsed: Duration,
+}
+
+/// Streams `frames` frames from a camera into a RAM buffer through the same acquisition thread
+/// and bounded queue the recorder uses, without touching the disk (benchmarks, drop tests).
+pub fn stream_to_ram(
+    camera: Box<dyn Camera>,
+    frames: usize,
+    queue_frames: usize,
+) -> Result<RamStats, RecordError> {
+    let bytes = camera.info().frame_bytes();
+    let acq = Acquisition::start(camera, queue_frames.max(1))?;
+    let mut store: Vec<Vec<u8>> = Vec::with_capacity(frames);
+    let mut metas: Vec<FrameMeta> = Vec::with_capacity(frames);
+    let start = std::time::Instant::now();
+    while metas.len() < frames {
+        match acq.rx.recv_timeout(Duration::from_secs(5)) {
+            Ok(Ok(f)) => {
+                metas.push(FrameMeta {
+                    frame_id: f.frame_id,
+                    timestamp_ns: f.timestamp_ns,
+                });
+                // The RAM ring keeps the frame; the camera gets a fresh buffer of the same size.
+                let _ = acq.recycle.send(Vec::with_capacity(bytes));
+                store.push(f.data);
+            }
+            Ok(Err(e)) => {
+                acq.finish();
+                return Err(e.into());
+            }
+            Err(_) => break,
+        }
+    }
+    let elapsed = start.elapsed();
+    let lost = acq.queue_full_losses.load(Ordering::Relaxed);
+    acq.finish();
+    Ok(RamStats {
+        frames_received: metas.len() as u64,
+        frames_lost_queue: lost,
+        frames_missing_ids: count_gaps(&metas),
+        elapsed,
+    })
+}

@@ -1,0 +1,417 @@
+//! Sessions on disk: one directory per experiment. This module owns the format (documented in
+//! docs/session-format.md): the manifest `session.json` (always replaced atomically), the frame
+//! container `frames.bin` (fixed-size records, append-only, so a crash keeps its prefix), the
+//! index `frames.idx` (one line per frame, written after the frame's pixels), the config snapshot
+//! `config.toml`, and the analysis outputs. It knows nothing of cameras or analysis.
+
+pub mod tiff;
+
+use crate::camera::CameraInfo;
+use crate::config::{Config, PixelFormat};
+use crate::trigger::TriggerInfo;
+use serde::{Deserialize, Serialize};
+use std::fs::{File, OpenOptions};
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+pub const SESSION_SCHEMA: &str = "impactcam.session/1";
+pub const FRAMES_MAGIC: &[u8; 8] = b"ICAMFRM1";
+pub const FRAMES_HEADER_BYTES: u64 = 32;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    #[error("{path}: {message}")]
+    Io { path: PathBuf, message: String },
+    #[error("{path}: {message}")]
+    Format { path: PathBuf, message: String },
+}
+
+fn io_err(path: &Path, e: impl std::fmt::Display) -> SessionError {
+    SessionError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    Recording,
+    Complete,
+    Incomplete,
+    Failed,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ManifestCamera {
+    pub backend: String,
+    pub device: String,
+    pub width: u32,
+    pub height: u32,
+    pub pixel_format: PixelFormat,
+    pub frame_rate_hz: f64,
+}
+
+impl From<&CameraInfo> for ManifestCamera {
+    fn from(c: &CameraInfo) -> Self {
+        ManifestCamera {
+            backend: c.backend.clone(),
+            device: c.device.clone(),
+            width: c.width,
+            height: c.height,
+            pixel_format: c.pixel_format,
+            frame_rate_hz: c.frame_rate_hz,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ManifestTrigger {
+    pub backend: String,
+    pub port: Option<String>,
+    pub protocol: Option<String>,
+    pub channel: Option<u8>,
+    pub pulse_ms: f64,
+    /// When the relay closed, on the camera clock (ns), mapped from the host clock through the
+    /// arrival time of the latest frame.
+    pub fired_at_ns: Option<u64>,
+    /// The saved frame (by index) during whose period the relay closed.
+    pub fired_in_frame: Option<u64>,
+}
+
+impl ManifestTrigger {
+    pub fn new(info: &TriggerInfo, pulse_ms: f64) -> Self {
+        ManifestTrigger {
+            backend: info.backend.clone(),
+            port: info.port.clone(),
+            protocol: info.protocol.clone(),
+            channel: info.channel,
+            pulse_ms,
+            fired_at_ns: None,
+            fired_in_frame: None,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Manifest {
+    pub schema: String,
+    pub id: String,
+    pub status: Status,
+    pub reason: Option<String>,
+    pub software_version: String,
+    pub created_utc: String,
+    pub camera: ManifestCamera,
+    pub trigger: ManifestTrigger,
+    pub frames_recorded: u64,
+    pub frames_dropped: u64,
+    pub config: Config,
+}
+
+/// One index line: where a frame sits and what the device said about it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameMeta {
+    pub frame_id: u64,
+    pub timestamp_ns: u64,
+}
+
+/// Writes a session while it is recorded.
+pub struct SessionWriter {
+    dir: PathBuf,
+    manifest: Manifest,
+    frames: File,
+    index: File,
+    frame_bytes: usize,
+}
+
+/// "YYYYmmdd-HHMMSS" in UTC, from the system clock.
+pub fn utc_stamp() -> (String, String) {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    let days = (secs / 86_400) as i64;
+    let rem = secs % 86_400;
+    // Civil-from-days (H. Hinnant).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    let (hh, mm, ss) = (rem / 3600, rem % 3600 / 60, rem % 60);
+    (
+        format!("{y:04}{m:02}{d:02}-{hh:02}{mm:02}{ss:02}"),
+        format!("{y:04}-{m:02}-{d:02}T{hh:02}:{mm:02}:{ss:02}Z"),
+    )
+}
+
+impl SessionWriter {
+    /// Creates a new session directory under `parent` and writes the manifest (status
+    /// "recording"), the config snapshot and the empty frame container.
+    pub fn create(
+        parent: &Path,
+        camera: &CameraInfo,
+        trigger: ManifestTrigger,
+        config: &Config,
+    ) -> Result<SessionWriter, SessionError> {
+        std::fs::create_dir_all(parent).map_err(|e| io_err(parent, e))?;
+        let (stamp, iso) = utc_stamp();
+        let mut n = 1;
+        let dir = loop {
+            let d = parent.join(format!("{stamp}-{n:02}"));
+            match std::fs::create_dir(&d) {
+                Ok(()) => break d,
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && n < 999 => n += 1,
+                Err(e) => return Err(io_err(&d, e)),
+            }
+        };
+        let id = dir
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        std::fs::write(dir.join("config.toml"), config.to_toml())
+            .map_err(|e| io_err(&dir.join("config.toml"), e))?;
+        let fpath = dir.join("frames.bin");
+        let mut frames = File::create(&fpath).map_err(|e| io_err(&fpath, e))?;
+        let mut header = Vec::with_capacity(FRAMES_HEADER_BYTES as usize);
+        header.extend_from_slice(FRAMES_MAGIC);
+        header.extend_from_slice(&camera.width.to_le_bytes());
+        header.extend_from_slice(&camera.height.to_le_bytes());
+        header.extend_from_slice(&(camera.pixel_format.bytes_per_pixel() as u32).to_le_bytes());
+        header.resize(FRAMES_HEADER_BYTES as usize, 0);
+        frames.write_all(&header).map_err(|e| io_err(&fpath, e))?;
+        let ipath = dir.join("frames.idx");
+        let mut index = File::create(&ipath).map_err(|e| io_err(&ipath, e))?;
+        index
+            .write_all(b"frame_id,timestamp_ns\n")
+            .map_err(|e| io_err(&ipath, e))?;
+        let manifest = Manifest {
+            schema: SESSION_SCHEMA.into(),
+            id,
+            status: Status::Recording,
+            reason: None,
+            software_version: env!("CARGO_PKG_VERSION").into(),
+            created_utc: iso,
+            camera: camera.into(),
+            trigger,
+            frames_recorded: 0,
+            frames_dropped: 0,
+            config: config.clone(),
+        };
+        let w = SessionWriter {
+            dir,
+            manifest,
+            frames,
+            index,
+            frame_bytes: camera.frame_bytes(),
+        };
+        w.write_manifest()?;
+        Ok(w)
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    pub fn manifest_mut(&mut self) -> &mut Manifest {
+        &mut self.manifest
+    }
+
+    /// Appends one frame: pixels first, then its index line, so an indexed frame is always
+    /// complete on disk.
+    pub fn append(&mut self, meta: FrameMeta, data: &[u8]) -> Result<(), SessionError> {
+        if data.len() != self.frame_bytes {
+            return Err(SessionError::Format {
+                path: self.dir.join("frames.bin"),
+                message: format!(
+                    "frame {} has {} bytes, expected {}",
+                    meta.frame_id,
+                    data.len(),
+                    self.frame_bytes
+                ),
+            });
+        }
+        self.frames
+            .write_all(data)
+            .map_err(|e| io_err(&self.dir.join("frames.bin"), e))?;
+        let line = format!("{},{}\n", meta.frame_id, meta.timestamp_ns);
+        self.index
+            .write_all(line.as_bytes())
+            .map_err(|e| io_err(&self.dir.join("frames.idx"), e))?;
+        self.manifest.frames_recorded += 1;
+        Ok(())
+    }
+
+    pub fn write_manifest(&self) -> Result<(), SessionError> {
+        let text =
+            serde_json::to_string_pretty(&self.manifest).map_err(|e| io_err(&self.dir, e))?;
+        write_atomic(&self.dir.join("session.json"), text.as_bytes())
+    }
+
+    /// Flushes frames to stable storage and writes the final manifest.
+    pub fn finish(
+        mut self,
+        status: Status,
+        reason: Option<String>,
+    ) -> Result<PathBuf, SessionError> {
+        self.frames
+            .sync_data()
+            .map_err(|e| io_err(&self.dir.join("frames.bin"), e))?;
+        self.index
+            .sync_data()
+            .map_err(|e| io_err(&self.dir.join("frames.idx"), e))?;
+        self.manifest.status = status;
+        self.manifest.reason = reason;
+        self.write_manifest()?;
+        Ok(self.dir)
+    }
+}
+
+/// Write to a temporary file and rename over the target, so readers see old or new, never half.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SessionError> {
+    let tmp = path.with_extension("tmp");
+    let mut f = File::create(&tmp).map_err(|e| io_err(&tmp, e))?;
+    f.write_all(bytes)
+        .and_then(|_| f.sync_data())
+        .map_err(|e| io_err(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| io_err(path, e))
+}
+
+/// A recorded session opened for reading.
+pub struct SessionReader {
+    pub dir: PathBuf,
+    pub manifest: Manifest,
+    pub frames: Vec<FrameMeta>,
+    /// Frames the index promised but the container does not hold in full (crash mid-write).
+    pub frames_truncated: u64,
+    pub width: u32,
+    pub height: u32,
+    pub bytes_per_pixel: usize,
+    file: File,
+}
+
+impl SessionReader {
+    pub fn open(dir: &Path) -> Result<SessionReader, SessionError> {
+        if !dir.is_dir() {
+            return Err(io_err(
+                dir,
+                "not a session directory (does not exist or is not a directory)",
+            ));
+        }
+        let mpath = dir.join("session.json");
+        let text = std::fs::read_to_string(&mpath).map_err(|e| {
+            io_err(&mpath, format!("cannot read the session manifest ({e}); is this an impactcam session directory?"))
+        })?;
+        let manifest: Manifest = serde_json::from_str(&text).map_err(|e| SessionError::Format {
+            path: mpath.clone(),
+            message: format!("not a valid session manifest: {e}"),
+        })?;
+        if manifest.schema != SESSION_SCHEMA {
+            return Err(SessionError::Format {
+                path: mpath,
+                message: format!(
+                    "schema {:?} is not supported, expected {SESSION_SCHEMA:?}",
+                    manifest.schema
+                ),
+            });
+        }
+        let fpath = dir.join("frames.bin");
+        let mut file = File::open(&fpath).map_err(|e| io_err(&fpath, e))?;
+        let mut header = [0u8; FRAMES_HEADER_BYTES as usize];
+        file.read_exact(&mut header)
+            .map_err(|_| SessionError::Format {
+                path: fpath.clone(),
+                message: "frame container header is missing or short".into(),
+            })?;
+        if &header[..8] != FRAMES_MAGIC {
+            return Err(SessionError::Format {
+                path: fpath,
+                message: "not an impactcam frame container (bad magic)".into(),
+            });
+        }
+        let word =
+            |i: usize| u32::from_le_bytes([header[i], header[i + 1], header[i + 2], header[i + 3]]);
+        let (width, height, bpp) = (word(8), word(12), word(16) as usize);
+        if width == 0 || height == 0 || !(bpp == 1 || bpp == 2) {
+            return Err(SessionError::Format {
+                path: fpath,
+                message: format!("frame container says {width}×{height} at {bpp} bytes per pixel, expected a positive size at 1 or 2"),
+            });
+        }
+        let frame_bytes = width as u64 * height as u64 * bpp as u64;
+        let len = file.metadata().map_err(|e| io_err(&fpath, e))?.len();
+        let whole_frames = len.saturating_sub(FRAMES_HEADER_BYTES) / frame_bytes;
+        let ipath = dir.join("frames.idx");
+        let itext = std::fs::read_to_string(&ipath).map_err(|e| io_err(&ipath, e))?;
+        let mut frames = Vec::new();
+        for (lineno, line) in itext.split_inclusive('\n').enumerate().skip(1) {
+            // A line without its newline was cut short by a crash: the frame is not counted.
+            let Some(line) = line.strip_suffix('\n') else {
+                break;
+            };
+            let mut parts = line.split(',');
+            let parse = |p: Option<&str>| p.and_then(|s| s.trim().parse::<u64>().ok());
+            match (parse(parts.next()), parse(parts.next())) {
+                (Some(frame_id), Some(timestamp_ns)) => frames.push(FrameMeta {
+                    frame_id,
+                    timestamp_ns,
+                }),
+                _ => {
+                    return Err(SessionError::Format {
+                        path: ipath,
+                        message: format!("line {}: expected frame_id,timestamp_ns", lineno + 1),
+                    })
+                }
+            }
+        }
+        let truncated = (frames.len() as u64).saturating_sub(whole_frames);
+        frames.truncate(whole_frames as usize);
+        Ok(SessionReader {
+            dir: dir.to_path_buf(),
+            manifest,
+            frames,
+            frames_truncated: truncated,
+            width,
+            height,
+            bytes_per_pixel: bpp,
+            file,
+        })
+    }
+
+    pub fn frame_bytes(&self) -> usize {
+        self.width as usize * self.height as usize * self.bytes_per_pixel
+    }
+
+    /// Raw bytes of frame `i` (by position in the session, not frame id).
+    pub fn read_frame(&mut self, i: usize, buf: &mut Vec<u8>) -> Result<(), SessionError> {
+        let n = self.frame_bytes();
+        buf.resize(n, 0);
+        let fpath = self.dir.join("frames.bin");
+        self.file
+            .seek(SeekFrom::Start(FRAMES_HEADER_BYTES + (i * n) as u64))
+            .and_then(|_| self.file.read_exact(buf))
+            .map_err(|e| io_err(&fpath, format!("frame {i}: {e}")))
+    }
+
+    /// Whether the recording was finalised; a crash or kill leaves "recording".
+    pub fn is_complete(&self) -> bool {
+        self.manifest.status == Status::Complete
+    }
+
+    pub fn config(&self) -> &Config {
+        &self.manifest.config
+    }
+}
+
+/// Opens a file for appending, creating it (used by analysis outputs that accumulate).
+pub fn open_append(path: &Path) -> Result<File, SessionError> {
+    OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)
+        .map_err(|e| io_err(path, e))
+}
