@@ -62,19 +62,20 @@ impl TiffStack {
                     format!("page {page} is {w}×{h} at {} bits, expected {width}×{height} at {} bits like page 0", page_bpp * 8, bpp * 8),
                 ));
             }
-            let data =
-                match dec.read_image().map_err(|e| {
-                    fmt_err(path, format!("page {page} is unreadable (truncated?): {e}"))
-                })? {
-                    DecodingResult::U8(v) => v,
-                    DecodingResult::U16(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
-                    _ => return Err(fmt_err(
+            let data = match dec.read_image().map_err(|e| {
+                fmt_err(path, format!("page {page} is unreadable (truncated?): {e}"))
+            })? {
+                DecodingResult::U8(v) => v,
+                DecodingResult::U16(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+                _ => {
+                    return Err(fmt_err(
                         path,
                         format!(
                             "page {page}: unexpected sample type, expected 8- or 16-bit integers"
                         ),
-                    )),
-                };
+                    ))
+                }
+            };
             if data.len() != (w * h) as usize * bpp {
                 return Err(fmt_err(
                     path,

@@ -1,0 +1,246 @@
+//! The command line as a user meets it: the README's first command on a fresh directory,
+//! replay, analyze of exported TIFF stacks, config commands, and bad input.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn impactcam(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_impactcam"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("impactcam binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn only_session(dir: &Path) -> PathBuf {
+    let mut sessions: Vec<PathBuf> = std::fs::read_dir(dir.join("sessions"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(sessions.len(), 1, "{sessions:?}");
+    sessions.pop().unwrap()
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Files anywhere below `dir` that look like a result.
+fn results_below(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.file_name().unwrap().to_string_lossy().contains("report") {
+                out.push(p);
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn run_on_the_embedded_default_measures_e_and_replays_exactly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = impactcam(tmp.path(), &["run"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("e ") && text.contains("mm/s") && text.contains("±"),
+        "{text}"
+    );
+    let session = only_session(tmp.path());
+    let report = json(&session.join("report.json"));
+    let truth = json(&session.join("truth.json"));
+    assert_eq!(report["schema"], "impactcam.report/1");
+    let e = report["e"]["value"].as_f64().unwrap();
+    let e_true = truth["e"].as_f64().unwrap();
+    assert!((e - e_true).abs() < 0.02, "e {e} vs true {e_true}");
+    let t = report["impact"]["time_s"]["value"].as_f64().unwrap();
+    let t_true = truth["impact"]["time_s"].as_f64().unwrap();
+    assert!((t - t_true).abs() < 0.2e-3, "impact {t} vs true {t_true}");
+    // The relay was set open when the module was opened, closed once, and opened again within
+    // the configured bounds, as the simulated module saw it on its serial line.
+    let events = truth["relay_events"].as_array().unwrap();
+    let states: Vec<bool> = events
+        .iter()
+        .map(|e| e["closed"].as_bool().unwrap())
+        .collect();
+    assert_eq!(states, vec![false, true, false]);
+    let held_s = events[2]["time_s"].as_f64().unwrap() - events[1]["time_s"].as_f64().unwrap();
+    assert!(
+        (0.050..0.500).contains(&held_s),
+        "relay held {held_s} s; pulse 50 ms, max 500 ms"
+    );
+    let manifest = json(&session.join("session.json"));
+    assert_eq!(manifest["status"], "complete");
+    assert_eq!(manifest["frames_recorded"], 280);
+    assert_eq!(manifest["frames_dropped"], 0);
+
+    let replay = impactcam(tmp.path(), &["replay", session.to_str().unwrap(), "--json"]);
+    assert!(replay.status.success(), "{}", stderr(&replay));
+    assert_eq!(
+        replay.stdout,
+        std::fs::read(session.join("report.json")).unwrap()
+    );
+}
+
+#[test]
+fn a_run_that_never_fires_the_relay_finds_no_collision() {
+    // With the trigger disconnected from the simulated lab the spheres are never released.
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(
+        tmp.path().join("c.toml"),
+        "[trigger]\nbackend = \"none\"\n[recording]\nframes = 60\n",
+    )
+    .unwrap();
+    let out = impactcam(tmp.path(), &["run", "--config", "c.toml"]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("never both measured"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(results_below(tmp.path()).is_empty());
+}
+
+#[test]
+fn exported_tiff_stacks_analyse_like_the_session_8_and_16_bit() {
+    for format in ["Mono8", "Mono16"] {
+        let tmp = tempfile::tempdir().unwrap();
+        let cfg = format!("[camera]\npixel_format = \"{format}\"\n");
+        std::fs::write(tmp.path().join("c.toml"), &cfg).unwrap();
+        let out = impactcam(tmp.path(), &["run", "--config", "c.toml", "--json"]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let session = only_session(tmp.path());
+        let from_session: Value = serde_json::from_slice(&out.stdout).unwrap();
+        let exp = impactcam(
+            tmp.path(),
+            &["export", session.to_str().unwrap(), "--tiff", "stack.tif"],
+        );
+        assert!(exp.status.success(), "{}", stderr(&exp));
+        let an = impactcam(
+            tmp.path(),
+            &[
+                "analyze",
+                "stack.tif",
+                "--config",
+                "c.toml",
+                "--json",
+                "--out",
+                "out",
+            ],
+        );
+        assert!(an.status.success(), "{}", stderr(&an));
+        let from_tiff: Value = serde_json::from_slice(&an.stdout).unwrap();
+        assert_eq!(from_tiff["source"]["kind"], "tiff");
+        assert!(tmp.path().join("out/report.json").exists());
+        // Without device timestamps frame k is at k/fps: same e, impact shifted by the first
+        // frame's timestamp.
+        let (e1, e2) = (
+            from_session["e"]["value"].as_f64().unwrap(),
+            from_tiff["e"]["value"].as_f64().unwrap(),
+        );
+        assert!((e1 - e2).abs() < 1e-9, "{format}: {e1} vs {e2}");
+    }
+}
+
+#[test]
+fn config_commands() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = impactcam(tmp.path(), &["config", "default"]);
+    assert!(out.status.success());
+    std::fs::write(tmp.path().join("d.toml"), &out.stdout).unwrap();
+    let check = impactcam(tmp.path(), &["config", "check", "d.toml"]);
+    assert!(check.status.success(), "{}", stderr(&check));
+    assert!(String::from_utf8_lossy(&check.stdout).contains("valid"));
+}
+
+fn assert_clean_failure(dir: &Path, args: &[&str], must_name: &[&str]) {
+    let out = impactcam(dir, args);
+    assert!(!out.status.success(), "{args:?} succeeded");
+    let err = stderr(&out);
+    assert_eq!(
+        err.trim().lines().count(),
+        1,
+        "{args:?}: expected one line, got:\n{err}"
+    );
+    for m in must_name {
+        assert!(err.contains(m), "{args:?}: {err:?} does not name {m:?}");
+    }
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(results_below(dir).is_empty(), "{args:?} wrote a result");
+}
+
+#[test]
+fn bad_input_gets_one_line_naming_the_problem() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(d.join("typo.toml"), "[camera]\nfram_rate_hz = 1000.0\n").unwrap();
+    assert_clean_failure(
+        d,
+        &["config", "check", "typo.toml"],
+        &["typo.toml", "fram_rate_hz"],
+    );
+    assert_clean_failure(
+        d,
+        &["run", "--config", "typo.toml"],
+        &["typo.toml", "fram_rate_hz"],
+    );
+    std::fs::write(d.join("neg.toml"), "[camera]\nframe_rate_hz = -1000.0\n").unwrap();
+    assert_clean_failure(
+        d,
+        &["run", "--config", "neg.toml"],
+        &["neg.toml", "camera.frame_rate_hz"],
+    );
+    assert!(
+        !d.join("sessions").exists(),
+        "a bad config must not create sessions"
+    );
+
+    std::fs::write(d.join("ok.toml"), "").unwrap();
+    // An RGB TIFF.
+    {
+        let f = std::fs::File::create(d.join("rgb.tif")).unwrap();
+        let mut enc = tiff::encoder::TiffEncoder::new(f).unwrap();
+        enc.write_image::<tiff::encoder::colortype::RGB8>(4, 4, &[0u8; 48])
+            .unwrap();
+    }
+    assert_clean_failure(
+        d,
+        &["analyze", "rgb.tif", "--config", "ok.toml"],
+        &["rgb.tif", "greyscale"],
+    );
+    // A truncated TIFF: a valid 240×192 stack cut in half.
+    {
+        let mut buf = std::io::Cursor::new(Vec::new());
+        let mut enc = tiff::encoder::TiffEncoder::new(&mut buf).unwrap();
+        for _ in 0..3 {
+            enc.write_image::<tiff::encoder::colortype::Gray8>(240, 192, &vec![30u8; 240 * 192])
+                .unwrap();
+        }
+        let bytes = buf.into_inner();
+        std::fs::write(d.join("cut.tif"), &bytes[..bytes.len() / 2]).unwrap();
+    }
+    assert_clean_failure(
+        d,
+        &["analyze", "cut.tif", "--config", "ok.toml"],
+        &["cut.tif"],
+    );
+    // An empty session directory.
+    std::fs::create_dir(d.join("empty")).unwrap();
+    assert_clean_failure(d, &["replay", "empty"], &["empty", "session"]);
+    assert_clean_failure(
+        d,
+        &["analyze", "empty", "--config", "ok.toml"],
+        &["empty", "session"],
+    );
+}
