@@ -71,7 +71,7 @@ fn capture_in(frames: usize, tmp: &Path) -> Result<String, BenchError> {
             frame_bytes as f64 / 1024.0
         );
 
-        // Camera alone.
+        // Camera alone, rendering into one reused buffer.
         let (_lab, mut cam) = sim_camera(&free)?;
         cam.start().map_err(fail)?;
         let t0 = Instant::now();

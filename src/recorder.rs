@@ -343,28 +343,34 @@ pub struct RamStats {
     pub elapsed: Duration,
 }
 
-/// Streams `frames` frames from a camera into a RAM buffer through the same acquisition thread
-/// and bounded queue the recorder uses, without touching the disk (benchmarks, drop tests).
+/// Streams `frames` frames from a camera into a RAM ring through the same acquisition thread
+/// and bounded queue the recorder uses, without touching the disk (benchmarks, drop tests). The
+/// ring is allocated and touched before streaming starts, as a recorder arming for a RAM
+/// recording would, so page faults do not pace the camera.
 pub fn stream_to_ram(
     camera: Box<dyn Camera>,
     frames: usize,
     queue_frames: usize,
 ) -> Result<RamStats, RecordError> {
     let bytes = camera.info().frame_bytes();
+    let mut ring = vec![0u8; frames * bytes];
+    for page in ring.chunks_mut(4096) {
+        page[0] = 1;
+    }
     let acq = Acquisition::start(camera, queue_frames.max(1))?;
-    let mut store: Vec<Vec<u8>> = Vec::with_capacity(frames);
     let mut metas: Vec<FrameMeta> = Vec::with_capacity(frames);
     let start = std::time::Instant::now();
     while metas.len() < frames {
         match acq.rx.recv_timeout(Duration::from_secs(5)) {
             Ok(Ok(f)) => {
+                let k = metas.len();
+                let n = f.data.len().min(bytes);
+                ring[k * bytes..k * bytes + n].copy_from_slice(&f.data[..n]);
                 metas.push(FrameMeta {
                     frame_id: f.frame_id,
                     timestamp_ns: f.timestamp_ns,
                 });
-                // The RAM ring keeps the frame; the camera gets a fresh buffer of the same size.
-                let _ = acq.recycle.send(Vec::with_capacity(bytes));
-                store.push(f.data);
+                let _ = acq.recycle.send(f.data);
             }
             Ok(Err(e)) => {
                 acq.finish();
