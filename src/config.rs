@@ -267,6 +267,11 @@ pub struct AnalysisConfig {
     pub gravity_mm_s2: f64,
     /// Detection threshold as a fraction of the way from background to the brightest pixel.
     pub threshold_fraction: f64,
+    /// Rotation between frames from markers: "kabsch" (optimal) or "thesis" (the 1992
+    /// 9-parameter least squares, for comparison).
+    pub rotation: crate::analysis::rotation::RotationMethod,
+    /// Diameter of the painted markers; sets the window of their sub-pixel centroid.
+    pub marker_diameter_mm: f64,
 }
 
 impl Default for AnalysisConfig {
@@ -275,6 +280,8 @@ impl Default for AnalysisConfig {
             min_frames_per_side: 5,
             gravity_mm_s2: hw_sim::GRAVITY_MM_S2,
             threshold_fraction: 0.5,
+            rotation: crate::analysis::rotation::RotationMethod::Kabsch,
+            marker_diameter_mm: 1.0,
         }
     }
 }
@@ -475,6 +482,7 @@ impl Config {
             ));
         }
         pos("analysis.gravity_mm_s2", a.gravity_mm_s2)?;
+        pos("analysis.marker_diameter_mm", a.marker_diameter_mm)?;
         if !(a.threshold_fraction > 0.05 && a.threshold_fraction < 0.95) {
             return Err(format!(
                 "analysis.threshold_fraction: {} is out of range, expected 0.05 to 0.95",

@@ -4,7 +4,7 @@
 //! and post separation lines), the contact normal there, and e — physics.md §6. Uncertainties are
 //! propagated from the fit covariances through a numerical Jacobian of everything derived.
 
-use nalgebra::{DMatrix, Matrix2, Vector3};
+use nalgebra::{DMatrix, Matrix2, Matrix3, Vector3};
 
 pub type V3 = Vector3<f64>;
 
@@ -107,6 +107,17 @@ pub struct Derived {
     pub tau_intersection: f64,
     /// Closest approach of the pre-impact trajectories, mm (for the no-impact message).
     pub closest_mm: f64,
+    /// With spins: ψ1 = |g_t|/|g_n|, ψ2 = (g_t′·t)/|g_n|, β = −(g_t′·t)/|g_t| (physics.md).
+    pub psi1: Option<f64>,
+    pub psi2: Option<f64>,
+    pub beta: Option<f64>,
+}
+
+/// Spins (rad/s) of [a pre, b pre, a post, b post] with their covariances.
+#[derive(Clone, Copy, Debug)]
+pub struct Spins {
+    pub omega: [V3; 4],
+    pub cov: [Matrix3<f64>; 4],
 }
 
 impl Derived {
@@ -123,11 +134,12 @@ impl Derived {
             v.extend_from_slice(w.as_slice());
         }
         v.push(self.tau_intersection);
+        v.extend([self.psi1, self.psi2, self.beta].iter().flatten());
         v
     }
 }
 
-fn params(fits: &Fits) -> Vec<f64> {
+fn params(fits: &Fits, spins: Option<&[V3; 4]>) -> Vec<f64> {
     let mut p = Vec::new();
     for f in fits {
         for l in f.axes.iter().flatten() {
@@ -135,10 +147,13 @@ fn params(fits: &Fits) -> Vec<f64> {
             p.push(l.v);
         }
     }
+    for w in spins.iter().flat_map(|s| s.iter()) {
+        p.extend_from_slice(w.as_slice());
+    }
     p
 }
 
-fn with_params(fits: &Fits, p: &[f64]) -> Fits {
+fn with_params(fits: &Fits, spins: Option<&[V3; 4]>, p: &[f64]) -> (Fits, Option<[V3; 4]>) {
     let mut out = *fits;
     let mut k = 0;
     for f in out.iter_mut() {
@@ -148,7 +163,9 @@ fn with_params(fits: &Fits, p: &[f64]) -> Fits {
             k += 2;
         }
     }
-    out
+    let spins = spins
+        .map(|_| [0, 1, 2, 3].map(|i| V3::new(p[k + 3 * i], p[k + 3 * i + 1], p[k + 3 * i + 2])));
+    (out, spins)
 }
 
 fn pos_vel(f: &SideFit, tau: f64, g: f64) -> (V3, V3) {
@@ -172,8 +189,15 @@ pub enum ImpactError {
     NotApproaching,
 }
 
-/// Impact time, normal, e and velocities from the four fits (all with the same t_ref).
-pub fn derive(fits: &Fits, contact_mm: f64, g: f64) -> Result<Derived, ImpactError> {
+/// Impact time, normal, e and velocities from the four fits (all with the same t_ref); with
+/// spins also ψ1, ψ2 and β. `radii` are the spheres' radii in mm.
+pub fn derive(
+    fits: &Fits,
+    spins: Option<&[V3; 4]>,
+    radii: [f64; 2],
+    contact_mm: f64,
+    g: f64,
+) -> Result<Derived, ImpactError> {
     let (pa, va) = pos_vel(&fits[0], 0.0, g);
     let (pb, vb) = pos_vel(&fits[1], 0.0, g);
     // Gravity acts on both alike: the separation is a straight line in time.
@@ -212,6 +236,19 @@ pub fn derive(fits: &Fits, contact_mm: f64, g: f64) -> Result<Derived, ImpactErr
         tau_c
     };
     let vel = |f: &SideFit| pos_vel(f, tau_c, g).1;
+    let (mut psi1, mut psi2, mut beta) = (None, None, None);
+    if let Some(w) = spins {
+        let contact_pre = rel_pre + normal.cross(&(w[0] * radii[0] + w[1] * radii[1]));
+        let contact_post = rel_post + normal.cross(&(w[2] * radii[0] + w[3] * radii[1]));
+        let gt = contact_pre - normal * contact_pre.dot(&normal);
+        let gt_post = contact_post - normal * contact_post.dot(&normal);
+        if gt.norm() > 1e-9 {
+            let t = gt / gt.norm();
+            psi1 = Some(gt.norm() / g_n.abs());
+            psi2 = Some(gt_post.dot(&t) / g_n.abs());
+            beta = Some(-gt_post.dot(&t) / gt.norm());
+        }
+    }
     Ok(Derived {
         tau_c,
         e,
@@ -219,14 +256,24 @@ pub fn derive(fits: &Fits, contact_mm: f64, g: f64) -> Result<Derived, ImpactErr
         velocities: [vel(&fits[0]), vel(&fits[1]), vel(&fits[2]), vel(&fits[3])],
         tau_intersection: tau_x,
         closest_mm: closest,
+        psi1,
+        psi2,
+        beta,
     })
 }
 
 /// One-sigma uncertainties of everything in `Derived`, by first-order propagation of the fit
 /// covariances (fits are independent of each other).
-pub fn uncertainties(fits: &Fits, contact_mm: f64, g: f64) -> Result<Derived, ImpactError> {
-    let base = derive(fits, contact_mm, g)?;
-    let p = params(fits);
+pub fn uncertainties(
+    fits: &Fits,
+    spins: Option<&Spins>,
+    radii: [f64; 2],
+    contact_mm: f64,
+    g: f64,
+) -> Result<Derived, ImpactError> {
+    let omega = spins.map(|s| &s.omega);
+    let base = derive(fits, omega, radii, contact_mm, g)?;
+    let p = params(fits, omega);
     let mut cov = DMatrix::<f64>::zeros(p.len(), p.len());
     let mut k = 0;
     for f in fits {
@@ -237,6 +284,14 @@ pub fn uncertainties(fits: &Fits, contact_mm: f64, g: f64) -> Result<Derived, Im
             k += 2;
         }
     }
+    for c in spins.iter().flat_map(|s| s.cov.iter()) {
+        for i in 0..3 {
+            for j in 0..3 {
+                cov[(k + i, k + j)] = c[(i, j)];
+            }
+        }
+        k += 3;
+    }
     let y0 = base.to_vec();
     let mut jac = DMatrix::<f64>::zeros(y0.len(), p.len());
     for j in 0..p.len() {
@@ -244,9 +299,11 @@ pub fn uncertainties(fits: &Fits, contact_mm: f64, g: f64) -> Result<Derived, Im
         let eval = |delta: f64| {
             let mut q = p.clone();
             q[j] += delta;
-            derive(&with_params(fits, &q), contact_mm, g)
+            let (f, w) = with_params(fits, omega, &q);
+            derive(&f, w.as_ref(), radii, contact_mm, g)
                 .ok()
                 .map(|d| d.to_vec())
+                .filter(|v| v.len() == y0.len())
         };
         let col: Option<Vec<f64>> = match (eval(h), eval(-h)) {
             (Some(a), Some(b)) => {
@@ -274,6 +331,9 @@ pub fn uncertainties(fits: &Fits, contact_mm: f64, g: f64) -> Result<Derived, Im
         velocities: [v3(5), v3(8), v3(11), v3(14)],
         tau_intersection: s[17],
         closest_mm: 0.0,
+        psi1: base.psi1.map(|_| s[18]),
+        psi2: base.psi2.map(|_| s[19]),
+        beta: base.beta.map(|_| s[20]),
     })
 }
 
@@ -308,7 +368,7 @@ mod tests {
             SideFit::fit(&series(V3::new(-3.0, 0.0, 0.0), va2, g, &post), 0.0, g),
             SideFit::fit(&series(V3::new(3.0, 0.0, 0.0), vb2, g, &post), 0.0, g),
         ];
-        let dd = derive(&fits, d, g).unwrap();
+        let dd = derive(&fits, None, [3.0, 3.0], d, g).unwrap();
         assert!(dd.tau_c.abs() < 1e-9, "{}", dd.tau_c);
         assert!((dd.e - e).abs() < 1e-9);
         assert!((dd.normal - V3::x()).norm() < 1e-9);

@@ -13,7 +13,10 @@ pub mod detect;
 pub mod geometry;
 pub mod image;
 pub mod kinematics;
+pub mod markers;
 pub mod report;
+pub mod rotation;
+pub mod spin;
 pub mod tracking;
 
 use crate::config::Config;
@@ -21,8 +24,10 @@ use crate::session::tiff::TiffStack;
 use crate::session::{FrameMeta, SessionError, SessionReader};
 use geometry::{View, ViewKind};
 use image::GreyImage;
-use kinematics::{derive, uncertainties, Fits, ImpactError, Series, SideFit, V3};
+use kinematics::{derive, uncertainties, Fits, ImpactError, Series, SideFit, Spins, V3};
 use report::*;
+use rotation::SpinFit;
+use std::collections::HashMap;
 use tracking::FrameObs;
 
 #[derive(Debug, thiserror::Error)]
@@ -185,15 +190,15 @@ impl FrameSource for TiffSource {
     }
 }
 
-/// Per-sphere coordinate series (x, y, z) in world mm, built from the views: y from the direct
-/// view, z from the mirror, x from the direct view when there is one (the mirror's x is the
-/// calibration check).
-fn series(obs: &[FrameObs], views: &[View], s: usize, keep: &dyn Fn(f64) -> bool) -> [Series; 3] {
+/// Per-sphere coordinate series (x, y, z) in world mm over the given frames, built from the
+/// views: y from the direct view, z from the mirror, x from the direct view when there is one
+/// (the mirror's x is the calibration check).
+fn series(obs: &[FrameObs], views: &[View], s: usize, frames: &[usize]) -> [Series; 3] {
     let mut out: [Series; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let has_direct = views.iter().any(|v| v.kind == ViewKind::Direct);
-    for f in obs.iter().filter(|f| keep(f.time_s)) {
+    for f in frames.iter().map(|&k| &obs[k]) {
         for (vi, view) in views.iter().enumerate() {
-            let Some(m) = f.spheres[s][vi] else { continue };
+            let Some(m) = &f.spheres[s][vi] else { continue };
             for (axis, val) in view.unproject(m.centre_px) {
                 if axis == 0 && has_direct && view.kind != ViewKind::Direct {
                     continue;
@@ -205,37 +210,39 @@ fn series(obs: &[FrameObs], views: &[View], s: usize, keep: &dyn Fn(f64) -> bool
     out
 }
 
-/// The four ballistic fits for a given split. Each sphere's fit on each side uses only the time
-/// span in which the primary view (direct, when configured) saw it: the other view may see the
-/// sphere still rolling in its tube, where the ballistic model does not hold.
-fn fit_all(obs: &[FrameObs], views: &[View], t_ref: f64, split: f64, guard: f64, g: f64) -> Fits {
-    let side_fit = |s: usize, pre: bool| {
-        let on_side = |t: f64| {
-            if pre {
-                t < split - guard
-            } else {
-                t > split + guard
-            }
-        };
-        let seen: Vec<f64> = obs
-            .iter()
+/// Frames of one flight phase of sphere `s` (before or after `split`, more than `guard` away):
+/// only the time span in which the primary view (direct, when configured) saw it, because the
+/// other view may still see the sphere rolling in its tube, where free flight does not hold.
+fn side_frames(obs: &[FrameObs], s: usize, pre: bool, split: f64, guard: f64) -> Vec<usize> {
+    let on_side = |t: f64| {
+        if pre {
+            t < split - guard
+        } else {
+            t > split + guard
+        }
+    };
+    let seen = || {
+        obs.iter()
             .filter(|f| on_side(f.time_s) && f.spheres[s][0].is_some())
             .map(|f| f.time_s)
-            .collect();
-        let lo = seen.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = seen.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        SideFit::fit(
-            &series(obs, views, s, &|t| on_side(t) && t >= lo && t <= hi),
-            t_ref,
-            g,
-        )
     };
-    [
-        side_fit(0, true),
-        side_fit(1, true),
-        side_fit(0, false),
-        side_fit(1, false),
-    ]
+    let lo = seen().fold(f64::INFINITY, f64::min);
+    let hi = seen().fold(f64::NEG_INFINITY, f64::max);
+    (0..obs.len())
+        .filter(|&k| on_side(obs[k].time_s) && obs[k].time_s >= lo && obs[k].time_s <= hi)
+        .collect()
+}
+
+/// [a pre, b pre, a post, b post]
+fn phases(obs: &[FrameObs], split: f64, guard: f64) -> [Vec<usize>; 4] {
+    [(0, true), (1, true), (0, false), (1, false)]
+        .map(|(s, pre)| side_frames(obs, s, pre, split, guard))
+}
+
+/// The four ballistic fits for a given split.
+fn fit_all(obs: &[FrameObs], views: &[View], t_ref: f64, split: f64, guard: f64, g: f64) -> Fits {
+    let ph = phases(obs, split, guard);
+    [0, 1, 2, 3].map(|k| SideFit::fit(&series(obs, views, k % 2, &ph[k]), t_ref, g))
 }
 
 /// Analyses any frame source with the given config.
@@ -273,7 +280,7 @@ pub fn analyze(
     // Initial split: the frame where a and b are seen closest together in the primary view.
     let mut closest: Option<(f64, f64)> = None;
     for f in &obs {
-        if let (Some(a), Some(b)) = (f.spheres[0][primary], f.spheres[1][primary]) {
+        if let (Some(a), Some(b)) = (&f.spheres[0][primary], &f.spheres[1][primary]) {
             let d = (a.centre_px[0] - b.centre_px[0]).hypot(a.centre_px[1] - b.centre_px[1]);
             if closest.is_none_or(|(_, dd)| d < dd) {
                 closest = Some((f.time_s, d));
@@ -288,6 +295,7 @@ pub fn analyze(
         )));
     };
     let min_side = cfg.analysis.min_frames_per_side as usize;
+    let radii = [cfg.spheres.sphere(0).0 / 2.0, cfg.spheres.sphere(1).0 / 2.0];
     for _ in 0..8 {
         let fits = fit_all(&obs, &views, split, split, 0.5 * period, g);
         for (k, side) in fits.iter().enumerate() {
@@ -299,7 +307,7 @@ pub fn analyze(
                 )));
             }
         }
-        let d = match derive(&fits, contact_mm, g) {
+        let d = match derive(&fits, None, radii, contact_mm, g) {
             Ok(d) => d,
             Err(ImpactError::NoContact { closest_mm }) => {
                 return Err(AnalysisError::NoImpact {
@@ -325,17 +333,47 @@ pub fn analyze(
     }
     // Final fits referenced at the impact time, so p0 and v are the state at impact.
     let fits = fit_all(&obs, &views, split, split, 0.5 * period, g);
-    let d = derive(&fits, contact_mm, g).map_err(|e| AnalysisError::NoImpact {
+    let mut warnings = src.warnings();
+
+    // Spins, one constant vector per sphere and flight phase.
+    let method = cfg.analysis.rotation;
+    let ph = phases(&obs, split, 0.5 * period);
+    let measured: Vec<(Option<SpinFit>, HashMap<usize, u32>)> = (0..4)
+        .map(|k| spin::measure(&obs, &ph[k], k % 2, method))
+        .collect();
+    let phase_names = ["a before", "b before", "a after", "b after"];
+    let missing: Vec<&str> = (0..4)
+        .filter(|&k| measured[k].0.is_none())
+        .map(|k| phase_names[k])
+        .collect();
+    let spins = if missing.is_empty() {
+        let f = |k: usize| measured[k].0.expect("checked above");
+        Some(Spins {
+            omega: [0, 1, 2, 3].map(|k| f(k).omega),
+            cov: [0, 1, 2, 3].map(|k| f(k).cov),
+        })
+    } else {
+        warnings.push(format!(
+            "spin not measured for sphere {} the impact (too few markers tracked over too few frames): spins there, beta, psi1, psi2 and branch_hint are null",
+            missing.join(", ")
+        ));
+        None
+    };
+    let impact_err = |e: ImpactError| AnalysisError::NoImpact {
         source_name: info.name.clone(),
         message: format!("{e:?}"),
-    })?;
-    let sd = uncertainties(&fits, contact_mm, g).map_err(|e| AnalysisError::NoImpact {
-        source_name: info.name.clone(),
-        message: format!("{e:?}"),
-    })?;
+    };
+    let d = derive(
+        &fits,
+        spins.as_ref().map(|s| &s.omega),
+        radii,
+        contact_mm,
+        g,
+    )
+    .map_err(impact_err)?;
+    let sd = uncertainties(&fits, spins.as_ref(), radii, contact_mm, g).map_err(impact_err)?;
     let t_c = split + d.tau_c;
 
-    let mut warnings = src.warnings();
     let three_d = views.len() == 2;
     if !three_d {
         warnings.push(format!(
@@ -349,9 +387,6 @@ pub fn analyze(
             "{dropped} frame(s) were dropped by the camera (gaps in frame ids)"
         ));
     }
-    warnings.push(
-        "spin is not measured yet (marker tracking is not implemented): spins, beta, psi1, psi2 and branch_hint are null".into(),
-    );
     let dt_check = (d.tau_intersection - d.tau_c).abs();
     if dt_check > 2.0 * period {
         warnings.push(format!(
@@ -382,7 +417,7 @@ pub fn analyze(
         let vi = views.iter().position(|v| v.kind == kind)?;
         let mut ds: Vec<f64> = obs
             .iter()
-            .filter_map(|f| f.spheres[s][vi].map(|m| m.diameter_px))
+            .filter_map(|f| f.spheres[s][vi].as_ref().map(|m| m.diameter_px))
             .collect();
         if ds.is_empty() {
             return None;
@@ -397,16 +432,31 @@ pub fn analyze(
             uncertainty: sigma / (ds.len() as f64).sqrt(),
         })
     };
+    let tracked_frames: Vec<usize> = obs
+        .iter()
+        .filter(|f| f.spheres.iter().any(|s| s.iter().any(|m| m.is_some())))
+        .map(|f| f.index as usize)
+        .collect();
     let sphere = |s: usize| SphereResult {
         velocity_pre_mm_s: est3(d.velocities[s], sd.velocities[s]),
         velocity_post_mm_s: est3(d.velocities[2 + s], sd.velocities[2 + s]),
-        spin_pre_rad_s: None,
-        spin_post_rad_s: None,
+        spin_pre_rad_s: measured[s].0.map(|f| spin_estimate(&f)),
+        spin_post_rad_s: measured[2 + s].0.map(|f| spin_estimate(&f)),
         diameter_px: ViewValues {
             direct: diameters(s, ViewKind::Direct),
             mirror: diameters(s, ViewKind::Mirror),
         },
-        markers_tracked: Vec::new(),
+        markers_tracked: tracked_frames
+            .iter()
+            .map(|&k| {
+                measured[s]
+                    .1
+                    .get(&k)
+                    .or_else(|| measured[2 + s].1.get(&k))
+                    .copied()
+                    .unwrap_or(0)
+            })
+            .collect(),
     };
     let tracks: Vec<TrackFrame> = obs
         .iter()
@@ -415,10 +465,11 @@ pub fn analyze(
             let one = |s: usize| -> Option<SphereTrack> {
                 let per_view = |kind: ViewKind| {
                     let vi = views.iter().position(|v| v.kind == kind)?;
-                    f.spheres[s][vi].map(|m| ViewTrack {
+                    f.spheres[s][vi].as_ref().map(|m| ViewTrack {
                         centre_px: m.centre_px,
                         uncertainty_px: m.sigma_px,
                         diameter_px: m.diameter_px,
+                        markers_px: m.markers.iter().map(|k| k.centre_px).collect(),
                     })
                 };
                 let (direct, mirror) = (per_view(ViewKind::Direct), per_view(ViewKind::Mirror));
@@ -427,7 +478,7 @@ pub fn analyze(
                 }
                 let mut centre: [Option<f64>; 3] = [None; 3];
                 for (vi, view) in views.iter().enumerate().rev() {
-                    if let Some(m) = f.spheres[s][vi] {
+                    if let Some(m) = &f.spheres[s][vi] {
                         for (axis, val) in view.unproject(m.centre_px) {
                             centre[axis] = Some(val);
                         }
@@ -472,10 +523,19 @@ pub fn analyze(
             value: d.e,
             uncertainty: sd.e,
         }),
-        beta: None,
-        psi1: None,
-        psi2: None,
-        branch_hint: None,
+        beta: d
+            .beta
+            .zip(sd.beta)
+            .map(|(value, uncertainty)| Estimate { value, uncertainty }),
+        psi1: d
+            .psi1
+            .zip(sd.psi1)
+            .map(|(value, uncertainty)| Estimate { value, uncertainty }),
+        psi2: d
+            .psi2
+            .zip(sd.psi2)
+            .map(|(value, uncertainty)| Estimate { value, uncertainty }),
+        branch_hint: d.psi2.zip(sd.psi2).and_then(|(v, u)| branch_hint(v, u)),
         spheres: Spheres {
             a: sphere(0),
             b: sphere(1),
@@ -505,6 +565,27 @@ pub fn analyze(
     })
 }
 
+fn spin_estimate(f: &SpinFit) -> Vector {
+    let s = |i: usize| f.cov[(i, i)].max(0.0).sqrt();
+    Estimate {
+        value: [f.omega.x, f.omega.y, f.omega.z],
+        uncertainty: [s(0), s(1), s(2)],
+    }
+}
+
+/// Which Walton branch the data suggest, from the sign of ψ2 alone: sliding keeps the slip's
+/// direction (ψ2 > 0 unless just above the break point), sticking with β0 > 0 reverses it. Null
+/// when ψ2 is within two standard deviations of zero.
+fn branch_hint(psi2: f64, sigma: f64) -> Option<String> {
+    if psi2.abs() <= 2.0 * sigma {
+        None
+    } else if psi2 > 0.0 {
+        Some("sliding".into())
+    } else {
+        Some("sticking".into())
+    }
+}
+
 /// Mirror x minus direct x over frames where a sphere is measured in both views.
 fn calibration(obs: &[FrameObs], views: &[View]) -> Option<Calibration> {
     let di = views.iter().position(|v| v.kind == ViewKind::Direct)?;
@@ -518,7 +599,10 @@ fn calibration(obs: &[FrameObs], views: &[View]) -> Option<Calibration> {
     };
     let diffs: Vec<f64> = obs
         .iter()
-        .flat_map(|f| (0..2).filter_map(move |s| Some((f.spheres[s][di]?, f.spheres[s][mi]?))))
+        .flat_map(|f| {
+            (0..2)
+                .filter_map(move |s| Some((f.spheres[s][di].as_ref()?, f.spheres[s][mi].as_ref()?)))
+        })
         .filter_map(|(d, m)| Some(x(mi, m.centre_px)? - x(di, d.centre_px)?))
         .collect();
     if diffs.is_empty() {

@@ -114,6 +114,8 @@ pub struct ViewTrack {
     pub centre_px: [f64; 2],
     pub uncertainty_px: [f64; 2],
     pub diameter_px: f64,
+    /// Markers found inside the disc (sub-pixel image positions), lifted to 3-D for spin.
+    pub markers_px: Vec<[f64; 2]>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

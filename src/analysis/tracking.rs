@@ -6,15 +6,17 @@ use super::circle::refine;
 use super::detect::{find_blobs, levels, Blob};
 use super::geometry::View;
 use super::image::GreyImage;
+use super::markers::{self, MarkerObs};
 use super::report::Unmeasured;
 use super::{AnalysisError, FrameSource};
 use crate::config::Config;
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Measurement {
     pub centre_px: [f64; 2],
     pub sigma_px: [f64; 2],
     pub diameter_px: f64,
+    pub markers: Vec<MarkerObs>,
 }
 
 #[derive(Clone, Debug)]
@@ -92,10 +94,19 @@ pub fn measure_all(
                 }
                 match refine(&img, view, b.centroid, radius[s], lv.background) {
                     Some(f) => {
+                        let radius_mm = cfg.spheres.sphere(s).0 / 2.0;
                         spheres[s][vi] = Some(Measurement {
                             centre_px: f.centre,
                             sigma_px: f.centre_sigma,
                             diameter_px: 2.0 * f.radius,
+                            markers: markers::find(
+                                &img,
+                                view,
+                                &f,
+                                radius_mm,
+                                cfg.analysis.marker_diameter_mm,
+                                lv.noise_sigma,
+                            ),
                         });
                         last[vi][s] = Some(f.centre);
                     }

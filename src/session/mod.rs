@@ -10,7 +10,7 @@ use crate::camera::CameraInfo;
 use crate::config::{Config, PixelFormat};
 use crate::trigger::TriggerInfo;
 use serde::{Deserialize, Serialize};
-use std::fs::{File, OpenOptions};
+use std::fs::File;
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
@@ -410,6 +410,7 @@ impl SessionReader {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::fs::OpenOptions;
 
     fn info() -> CameraInfo {
         CameraInfo {
