@@ -402,7 +402,7 @@ mod tests {
             ),
         ];
         assert!(matches!(
-            derive(&fits, 6.0, g),
+            derive(&fits, None, [3.0, 3.0], 6.0, g),
             Err(ImpactError::NoContact { .. })
         ));
     }
