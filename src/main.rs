@@ -90,6 +90,15 @@ enum BenchWhat {
         #[arg(long, default_value = ".")]
         dir: PathBuf,
     },
+    /// Accuracy of impactcam's methods and the thesis's against simulated ground truth.
+    Accuracy {
+        /// A small sweep (4 experiments) instead of the full one.
+        #[arg(long)]
+        quick: bool,
+        /// Where sessions are recorded while they are analysed (removed afterwards).
+        #[arg(long, default_value = ".")]
+        dir: PathBuf,
+    },
 }
 
 fn load_config(path: Option<&Path>) -> Result<Config> {
@@ -310,6 +319,13 @@ fn real_main(cli: Cli) -> Result<i32> {
                     bail!("--frames: {frames} is too few, expected at least 10");
                 }
                 print!("{}", impactcam::bench::capture(frames, &dir)?);
+                Ok(0)
+            }
+            BenchWhat::Accuracy { quick, dir } => {
+                let tmp = dir.join(format!(".impactcam-accuracy-{}", std::process::id()));
+                let text = impactcam::bench::accuracy::accuracy(quick, &tmp);
+                let _ = std::fs::remove_dir_all(&tmp);
+                print!("{text}");
                 Ok(0)
             }
         },

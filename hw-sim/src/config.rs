@@ -86,7 +86,7 @@ impl Default for LabConfig {
             out_of_plane_velocity_mm_s: 15.0,
             spin_jitter_rad_s: 20.0,
             solenoid_delay_ms: 5.0,
-            markers_per_sphere: 6,
+            markers_per_sphere: 8,
             marker_diameter_mm: 1.0,
             background_grey: 30.0,
             sphere_grey: 200.0,

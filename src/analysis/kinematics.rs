@@ -189,6 +189,51 @@ pub enum ImpactError {
     NotApproaching,
 }
 
+/// The collision coefficients, physics.md conventions.
+#[derive(Clone, Copy, Debug)]
+pub struct Collision {
+    pub e: f64,
+    pub psi1: Option<f64>,
+    pub psi2: Option<f64>,
+    pub beta: Option<f64>,
+}
+
+/// e from the relative velocities (b − a) before and after along n (from a to b); with spins
+/// [a pre, b pre, a post, b post] also ψ1 = |g_t|/|g_n|, ψ2 = (g_t′·t)/|g_n| and
+/// β = −(g_t′·t)/|g_t|, where g = Δv + n × (R_a ω_a + R_b ω_b). None unless approaching.
+pub fn collision(
+    normal: &V3,
+    rel_pre: &V3,
+    rel_post: &V3,
+    spins: Option<&[V3; 4]>,
+    radii: [f64; 2],
+) -> Option<Collision> {
+    let g_n = rel_pre.dot(normal);
+    if g_n >= 0.0 {
+        return None;
+    }
+    let e = -rel_post.dot(normal) / g_n;
+    let (mut psi1, mut psi2, mut beta) = (None, None, None);
+    if let Some(w) = spins {
+        let contact_pre = rel_pre + normal.cross(&(w[0] * radii[0] + w[1] * radii[1]));
+        let contact_post = rel_post + normal.cross(&(w[2] * radii[0] + w[3] * radii[1]));
+        let gt = contact_pre - normal * contact_pre.dot(normal);
+        let gt_post = contact_post - normal * contact_post.dot(normal);
+        if gt.norm() > 1e-9 {
+            let t = gt / gt.norm();
+            psi1 = Some(gt.norm() / g_n.abs());
+            psi2 = Some(gt_post.dot(&t) / g_n.abs());
+            beta = Some(-gt_post.dot(&t) / gt.norm());
+        }
+    }
+    Some(Collision {
+        e,
+        psi1,
+        psi2,
+        beta,
+    })
+}
+
 /// Impact time, normal, e and velocities from the four fits (all with the same t_ref); with
 /// spins also ψ1, ψ2 and β. `radii` are the spheres' radii in mm.
 pub fn derive(
@@ -223,11 +268,9 @@ pub fn derive(
     let (pa2, va2) = pos_vel(&fits[2], 0.0, g);
     let (pb2, vb2) = pos_vel(&fits[3], 0.0, g);
     let rel_post = vb2 - va2;
-    let g_n = rel_pre.dot(&normal);
-    if g_n >= 0.0 {
+    let Some(c) = collision(&normal, &rel_pre, &rel_post, spins, radii) else {
         return Err(ImpactError::NotApproaching);
-    }
-    let e = -rel_post.dot(&normal) / g_n;
+    };
     let a_off = dp - (pb2 - pa2);
     let b_off = dv - rel_post;
     let tau_x = if b_off.norm_squared() > 1e-12 {
@@ -236,19 +279,12 @@ pub fn derive(
         tau_c
     };
     let vel = |f: &SideFit| pos_vel(f, tau_c, g).1;
-    let (mut psi1, mut psi2, mut beta) = (None, None, None);
-    if let Some(w) = spins {
-        let contact_pre = rel_pre + normal.cross(&(w[0] * radii[0] + w[1] * radii[1]));
-        let contact_post = rel_post + normal.cross(&(w[2] * radii[0] + w[3] * radii[1]));
-        let gt = contact_pre - normal * contact_pre.dot(&normal);
-        let gt_post = contact_post - normal * contact_post.dot(&normal);
-        if gt.norm() > 1e-9 {
-            let t = gt / gt.norm();
-            psi1 = Some(gt.norm() / g_n.abs());
-            psi2 = Some(gt_post.dot(&t) / g_n.abs());
-            beta = Some(-gt_post.dot(&t) / gt.norm());
-        }
-    }
+    let Collision {
+        e,
+        psi1,
+        psi2,
+        beta,
+    } = c;
     Ok(Derived {
         tau_c,
         e,

@@ -17,6 +17,7 @@ pub mod markers;
 pub mod report;
 pub mod rotation;
 pub mod spin;
+pub mod thesis;
 pub mod tracking;
 
 use crate::config::Config;
@@ -27,7 +28,6 @@ use image::GreyImage;
 use kinematics::{derive, uncertainties, Fits, ImpactError, Series, SideFit, Spins, V3};
 use report::*;
 use rotation::SpinFit;
-use std::collections::HashMap;
 use tracking::FrameObs;
 
 #[derive(Debug, thiserror::Error)]
@@ -251,6 +251,26 @@ pub fn analyze(
     cfg: &Config,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Report, AnalysisError> {
+    analyze_detailed(src, cfg, progress).map(|(r, _)| r)
+}
+
+/// The intermediate results behind a report, for accuracy studies and the thesis baseline.
+pub struct Details {
+    pub views: Vec<View>,
+    pub obs: Vec<FrameObs>,
+    /// Impact time on the source's clock, s.
+    pub impact_time_s: f64,
+    /// Frame indices of [a pre, b pre, a post, b post].
+    pub phases: [Vec<usize>; 4],
+    /// Spin measurements of [a pre, b pre, a post, b post].
+    pub spins: Vec<spin::SpinMeasurement>,
+}
+
+pub fn analyze_detailed(
+    src: &mut dyn FrameSource,
+    cfg: &Config,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<(Report, Details), AnalysisError> {
     let info = src.source();
     let input_err = |message: String| AnalysisError::Input {
         source_name: info.name.clone(),
@@ -338,16 +358,16 @@ pub fn analyze(
     // Spins, one constant vector per sphere and flight phase.
     let method = cfg.analysis.rotation;
     let ph = phases(&obs, split, 0.5 * period);
-    let measured: Vec<(Option<SpinFit>, HashMap<usize, u32>)> = (0..4)
+    let measured: Vec<spin::SpinMeasurement> = (0..4)
         .map(|k| spin::measure(&obs, &ph[k], k % 2, method))
         .collect();
     let phase_names = ["a before", "b before", "a after", "b after"];
     let missing: Vec<&str> = (0..4)
-        .filter(|&k| measured[k].0.is_none())
+        .filter(|&k| measured[k].fit.is_none())
         .map(|k| phase_names[k])
         .collect();
     let spins = if missing.is_empty() {
-        let f = |k: usize| measured[k].0.expect("checked above");
+        let f = |k: usize| measured[k].fit.expect("checked above");
         Some(Spins {
             omega: [0, 1, 2, 3].map(|k| f(k).omega),
             cov: [0, 1, 2, 3].map(|k| f(k).cov),
@@ -440,8 +460,8 @@ pub fn analyze(
     let sphere = |s: usize| SphereResult {
         velocity_pre_mm_s: est3(d.velocities[s], sd.velocities[s]),
         velocity_post_mm_s: est3(d.velocities[2 + s], sd.velocities[2 + s]),
-        spin_pre_rad_s: measured[s].0.map(|f| spin_estimate(&f)),
-        spin_post_rad_s: measured[2 + s].0.map(|f| spin_estimate(&f)),
+        spin_pre_rad_s: measured[s].fit.map(|f| spin_estimate(&f)),
+        spin_post_rad_s: measured[2 + s].fit.map(|f| spin_estimate(&f)),
         diameter_px: ViewValues {
             direct: diameters(s, ViewKind::Direct),
             mirror: diameters(s, ViewKind::Mirror),
@@ -450,9 +470,9 @@ pub fn analyze(
             .iter()
             .map(|&k| {
                 measured[s]
-                    .1
+                    .markers_per_frame
                     .get(&k)
-                    .or_else(|| measured[2 + s].1.get(&k))
+                    .or_else(|| measured[2 + s].markers_per_frame.get(&k))
                     .copied()
                     .unwrap_or(0)
             })
@@ -501,7 +521,7 @@ pub fn analyze(
         .collect();
     let calibration = calibration(&obs, &views);
     let used = |k: usize| fits[k].axes[0].map(|l| l.n as u64).unwrap_or(0);
-    Ok(Report {
+    let report = Report {
         schema: REPORT_SCHEMA.into(),
         software: Software {
             name: "impactcam".into(),
@@ -562,7 +582,17 @@ pub fn analyze(
             unmeasured,
             warnings,
         },
-    })
+    };
+    Ok((
+        report,
+        Details {
+            views,
+            obs,
+            impact_time_s: t_c,
+            phases: ph,
+            spins: measured,
+        },
+    ))
 }
 
 fn spin_estimate(f: &SpinFit) -> Vector {

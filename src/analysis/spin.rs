@@ -74,6 +74,14 @@ fn track(obs: &[FrameObs], frames: &[usize], s: usize, omega: V3, gate_mm: f64) 
     out
 }
 
+/// Two markers (with the sphere centre) fix a rotation; the thesis's 9-parameter fit needs three.
+fn min_markers(method: RotationMethod) -> usize {
+    match method {
+        RotationMethod::Kabsch => 2,
+        RotationMethod::Thesis => 3,
+    }
+}
+
 fn pair_rotations(tracked: &Tracked, method: RotationMethod) -> Vec<PairRotation> {
     let mut pairs = Vec::new();
     for a in 0..tracked.len() {
@@ -83,7 +91,7 @@ fn pair_rotations(tracked: &Tracked, method: RotationMethod) -> Vec<PairRotation
             let mut keys: Vec<&(usize, usize)> =
                 ma.keys().filter(|key| mb.contains_key(key)).collect();
             keys.sort();
-            if keys.len() < 3 {
+            if keys.len() < min_markers(method) {
                 continue;
             }
             let mut p: Vec<V3> = keys.iter().map(|k| ma[k].0).collect();
@@ -128,29 +136,58 @@ fn pair_rotations(tracked: &Tracked, method: RotationMethod) -> Vec<PairRotation
     pairs
 }
 
-/// Spin of sphere `s` over the given frames (one flight phase), and markers tracked per frame.
+/// What the spin measurement of one sphere over one flight phase found.
+#[derive(Clone, Debug, Default)]
+pub struct SpinMeasurement {
+    pub fit: Option<SpinFit>,
+    /// Markers tracked in each frame (by frame index).
+    pub markers_per_frame: HashMap<usize, u32>,
+    /// The frame-pair rotations the fit rests on.
+    pub pairs: Vec<PairRotation>,
+}
+
+/// Frame-pair rotations of sphere `s` over the given frames, tracked with `omega` as the
+/// prediction; returns them with the markers tracked per frame.
+pub fn pairs(
+    obs: &[FrameObs],
+    frames: &[usize],
+    s: usize,
+    method: RotationMethod,
+    omega: V3,
+    gate_mm: f64,
+) -> (Vec<PairRotation>, HashMap<usize, u32>) {
+    let tracked = track(obs, frames, s, omega, gate_mm);
+    let mut pairs = pair_rotations(&tracked, method);
+    for p in pairs.iter_mut() {
+        p.dt_s = obs[p.frame_b].time_s - obs[p.frame_a].time_s;
+    }
+    (
+        pairs,
+        tracked.iter().map(|(k, m)| (*k, m.len() as u32)).collect(),
+    )
+}
+
+/// Spin of sphere `s` over the given frames (one flight phase).
 pub fn measure(
     obs: &[FrameObs],
     frames: &[usize],
     s: usize,
     method: RotationMethod,
-) -> (Option<SpinFit>, HashMap<usize, u32>) {
+) -> SpinMeasurement {
+    let mut out = SpinMeasurement::default();
     let mut omega = V3::zeros();
-    let mut fit = None;
-    let mut counts = HashMap::new();
     // First pass without prediction and a wide gate; then predicted with the spin found.
     for gate in [1.3, 0.6] {
-        let tracked = track(obs, frames, s, omega, gate);
-        let mut pairs = pair_rotations(&tracked, method);
-        for p in pairs.iter_mut() {
-            p.dt_s = obs[p.frame_b].time_s - obs[p.frame_a].time_s;
-        }
-        counts = tracked.iter().map(|(k, m)| (*k, m.len() as u32)).collect();
-        fit = rotation::fit_spin(&pairs);
-        match &fit {
+        let (pairs, counts) = pairs(obs, frames, s, method, omega, gate);
+        out = SpinMeasurement {
+            fit: rotation::fit_spin(&pairs),
+            markers_per_frame: counts,
+            pairs,
+        };
+        match &out.fit {
             Some(f) => omega = f.omega,
             None => break,
         }
     }
-    (fit, counts)
+    out
 }

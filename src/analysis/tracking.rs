@@ -14,6 +14,8 @@ use crate::config::Config;
 #[derive(Clone, Debug)]
 pub struct Measurement {
     pub centre_px: [f64; 2],
+    /// The segmented blob's centroid before refinement (the thesis baseline rounds it).
+    pub blob_centroid_px: [f64; 2],
     pub sigma_px: [f64; 2],
     pub diameter_px: f64,
     pub markers: Vec<MarkerObs>,
@@ -46,7 +48,7 @@ pub fn measure_all(
     let mut img = GreyImage::new();
     let mut out = Vec::with_capacity(source.len());
     let mut unmeasured = Vec::new();
-    let mut last: Vec<[Option<[f64; 2]>; 2]> = vec![[None, None]; views.len()];
+    let mut memory: Vec<ViewMemory> = vec![ViewMemory::default(); views.len()];
     let n = source.len();
     for i in 0..n {
         let meta = source.meta(i);
@@ -58,7 +60,33 @@ pub fn measure_all(
             let r_mean = 0.5 * (radius[0] + radius[1]);
             let lv = levels(&img, view);
             let blobs = find_blobs(&img, view, &lv, r_mean, cfg.analysis.threshold_fraction);
-            let assigned = assign(&blobs, view, &last[vi]);
+            // Views after the first take identity from it through the x both views see.
+            let primary_x: [Option<f64>; 2] = if vi > 0 {
+                [0, 1].map(|s| {
+                    spheres[s][0]
+                        .as_ref()
+                        .map(|m| world_x(&views[0], m.centre_px))
+                })
+            } else {
+                [None, None]
+            };
+            let contact_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
+            let assigned = match primary_x {
+                // Closer in x than a diameter, one may hide the other in this view: a single
+                // blob is then both, partly, and neither centre can be trusted.
+                [Some(xa), Some(xb)] if (xa - xb).abs() < contact_mm && blobs.len() < 2 => {
+                    if !blobs.is_empty() {
+                        unmeasured.push(Unmeasured {
+                            frame: i as u64,
+                            view: view.kind.name().into(),
+                            reason: "a, b: one hides the other in this view".into(),
+                        });
+                    }
+                    [None, None]
+                }
+                [None, None] => assign(&blobs, view, &memory[vi]),
+                x => assign_by_x(&blobs, view, x, contact_mm),
+            };
             if let [only] = blobs.as_slice() {
                 let reason = if only.merged {
                     Some("a, b: silhouettes merged")
@@ -97,6 +125,7 @@ pub fn measure_all(
                         let radius_mm = cfg.spheres.sphere(s).0 / 2.0;
                         spheres[s][vi] = Some(Measurement {
                             centre_px: f.centre,
+                            blob_centroid_px: b.centroid,
                             sigma_px: f.centre_sigma,
                             diameter_px: 2.0 * f.radius,
                             markers: markers::find(
@@ -108,7 +137,7 @@ pub fn measure_all(
                                 lv.noise_sigma,
                             ),
                         });
-                        last[vi][s] = Some(f.centre);
+                        memory[vi].last[s] = Some(f.centre);
                     }
                     None => unmeasured.push(Unmeasured {
                         frame: i as u64,
@@ -128,6 +157,18 @@ pub fn measure_all(
                 });
             }
         }
+        for (vi, mem) in memory.iter_mut().enumerate() {
+            if let (Some(a), Some(b)) = (&spheres[0][vi], &spheres[1][vi]) {
+                let (du, dv) = (
+                    b.centre_px[0] - a.centre_px[0],
+                    b.centre_px[1] - a.centre_px[1],
+                );
+                let n = du.hypot(dv);
+                if n > 0.0 {
+                    mem.a_to_b = Some([du / n, dv / n]);
+                }
+            }
+        }
         out.push(FrameObs {
             index: i as u64,
             frame_id: meta.frame_id,
@@ -139,26 +180,79 @@ pub fn measure_all(
     Ok((out, unmeasured))
 }
 
-/// Labels up to two blobs a/b: with two, by world x; with one, by nearness to where each sphere
-/// was last measured in this view (a single merged blob belongs to neither).
-fn assign<'a>(
+/// Labels blobs of a secondary view by matching their world x to where the primary view
+/// measured a and/or b in the same frame (a sphere the primary view did not measure is "the
+/// other one").
+fn assign_by_x<'a>(
     blobs: &'a [Blob],
     view: &View,
-    last: &[Option<[f64; 2]>; 2],
+    x: [Option<f64>; 2],
+    contact_mm: f64,
 ) -> [Option<&'a Blob>; 2] {
+    let mut sorted: Vec<&Blob> = blobs.iter().filter(|b| !b.merged).collect();
+    sorted.sort_by(|p, q| q.area_px.cmp(&p.area_px));
+    sorted.truncate(2);
+    // Distance of a blob from a sphere's primary x; a sphere not measured there matches nothing.
+    let cost = |b: &Blob, s: usize| x[s].map(|xs| (world_x(view, b.centroid) - xs).abs());
+    match sorted.as_slice() {
+        [p, q] => {
+            let straight = cost(p, 0).unwrap_or(0.0) + cost(q, 1).unwrap_or(0.0);
+            let swapped = cost(q, 0).unwrap_or(0.0) + cost(p, 1).unwrap_or(0.0);
+            if straight <= swapped {
+                [Some(p), Some(q)]
+            } else {
+                [Some(q), Some(p)]
+            }
+        }
+        [p] => match (cost(p, 0), cost(p, 1)) {
+            (Some(da), Some(db)) if da <= db => [Some(p), None],
+            (Some(_), Some(_)) => [None, Some(p)],
+            (Some(da), None) if da < contact_mm => [Some(p), None],
+            (None, Some(db)) if db < contact_mm => [None, Some(p)],
+            _ => [None, None],
+        },
+        _ => [None, None],
+    }
+}
+
+/// What the labelling remembers per view.
+#[derive(Clone, Copy, Default)]
+struct ViewMemory {
+    last: [Option<[f64; 2]>; 2],
+    /// Image direction from a to b the last time both were seen.
+    a_to_b: Option<[f64; 2]>,
+}
+
+/// Labels up to two blobs a/b. The first time both are seen, a is the one with the smaller world
+/// x (the report contract). After that identity is kept, not re-derived from x: spheres that
+/// graze each other pass, and x order flips. Through a collision the separation along the
+/// contact normal keeps its sign (they approach and leave along it), so b stays on the side a→b
+/// pointed to when both were last seen. A single blob goes to the sphere last seen nearest; a
+/// single merged blob belongs to neither.
+fn assign<'a>(blobs: &'a [Blob], view: &View, memory: &ViewMemory) -> [Option<&'a Blob>; 2] {
     let mut sorted: Vec<&Blob> = blobs.iter().collect();
     sorted.sort_by(|p, q| q.area_px.cmp(&p.area_px));
     sorted.truncate(2);
     match sorted.as_slice() {
         [p, q] => {
-            if world_x(view, p.centroid) <= world_x(view, q.centroid) {
+            let p_is_a = match memory.a_to_b {
+                Some(dir) => {
+                    (q.centroid[0] - p.centroid[0]) * dir[0]
+                        + (q.centroid[1] - p.centroid[1]) * dir[1]
+                        > 0.0
+                }
+                None => world_x(view, p.centroid) <= world_x(view, q.centroid),
+            };
+            if p_is_a {
                 [Some(p), Some(q)]
             } else {
                 [Some(q), Some(p)]
             }
         }
         [p] if !p.merged => {
-            let d = |s: usize| last[s].map(|c| (c[0] - p.centroid[0]).hypot(c[1] - p.centroid[1]));
+            let d = |s: usize| {
+                memory.last[s].map(|c| (c[0] - p.centroid[0]).hypot(c[1] - p.centroid[1]))
+            };
             match (d(0), d(1)) {
                 (Some(da), Some(db)) if da <= db => [Some(p), None],
                 (Some(_), Some(_)) => [None, Some(p)],

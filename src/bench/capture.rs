@@ -1,7 +1,4 @@
-//! Benchmarks that print ratios against a baseline measured in the same run (machines here are
-//! noisy; absolute numbers mean little, ratios travel).
-//!
-//! `capture`: for 240×192 @ 1000 fps and 640×480 @ 2000 fps, frames/s of
+//! `impactcam bench capture`: recorder throughput. For 240×192 @ 1000 fps and 640×480 @ 2000 fps, frames/s of
 //! - the simulated camera alone (rendering) — the baseline for RAM,
 //! - the recorder's acquisition path into RAM (thread + bounded queue + RAM store),
 //! - a raw sequential write of the same frames to disk — the baseline for disk,

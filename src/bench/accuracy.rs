@@ -1,0 +1,482 @@
+//! `impactcam bench accuracy`: a sweep of simulated experiments (tube angles, obliquities on both
+//! contact branches, noise levels, two resolutions), each recorded and analysed through the
+//! normal path and compared with the simulator's ground truth — for impactcam's methods and, on
+//! the same frames, for the thesis's (integer centres, two-frame differences, 9-parameter
+//! rotation).
+
+use crate::analysis::report::Scalar;
+use crate::analysis::rotation::RotationMethod;
+use crate::analysis::{self, spin, thesis, SessionSource};
+use crate::config::{Config, ViewGeometry};
+use crate::experiment::Rig;
+use crate::recorder;
+use crate::session::SessionReader;
+use nalgebra::{Rotation3, Vector3};
+use serde_json::Value;
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+type V3 = Vector3<f64>;
+
+#[derive(Clone, Debug)]
+pub struct Case {
+    pub tube_angle_deg: f64,
+    pub impact_offset: f64,
+    pub noise_sigma_grey: f64,
+    pub width: u32,
+    pub height: u32,
+    pub seed: u64,
+}
+
+/// The sweep: every tube angle with obliquities from head-on to grazing (both branches), at
+/// 240×192 and σ = 2 grey levels; a few at σ = 4; a few at 640×480. `quick` is a small subset.
+pub fn sweep(quick: bool) -> Vec<Case> {
+    let mut out = Vec::new();
+    let mut seed = 100;
+    let mut push = |a: f64, o: f64, n: f64, w: u32, h: u32| {
+        seed += 1;
+        out.push(Case {
+            tube_angle_deg: a,
+            impact_offset: o,
+            noise_sigma_grey: n,
+            width: w,
+            height: h,
+            seed,
+        });
+    };
+    if quick {
+        for (a, o) in [(15.0, 0.1), (30.0, 0.45), (45.0, 0.75), (60.0, 0.9)] {
+            push(a, o, 2.0, 240, 192);
+        }
+        return out;
+    }
+    for a in [10.0, 20.0, 30.0, 40.0, 50.0, 65.0] {
+        for o in [0.05, 0.3, 0.6, 0.85, 0.97] {
+            push(a, o, 2.0, 240, 192);
+        }
+    }
+    for (a, o) in [(25.0, 0.2), (35.0, 0.5), (45.0, 0.8), (55.0, 0.95)] {
+        push(a, o, 4.0, 240, 192);
+    }
+    for (a, o) in [(20.0, 0.3), (35.0, 0.6), (50.0, 0.85), (30.0, 0.95)] {
+        push(a, o, 2.0, 640, 480);
+    }
+    out
+}
+
+/// The default geometry scaled to a larger frame (same field of view, more pixels per mm).
+fn scaled(g: &ViewGeometry, k: f64) -> ViewGeometry {
+    ViewGeometry {
+        region: g.region.map(|x| (x as f64 * k).round() as u32),
+        px_per_mm: g.px_per_mm * k,
+        origin_px: g.origin_px.map(|x| (x + 0.5) * k - 0.5),
+        u_axis: g.u_axis.clone(),
+        v_axis: g.v_axis.clone(),
+    }
+}
+
+pub fn case_config(c: &Case, dir: &Path) -> Config {
+    let mut cfg = Config::default_config();
+    let k = c.width as f64 / 240.0;
+    cfg.camera.width = c.width;
+    cfg.camera.height = c.height;
+    for g in [cfg.geometry.direct.as_mut(), cfg.geometry.mirror.as_mut()]
+        .into_iter()
+        .flatten()
+    {
+        *g = scaled(g, k);
+    }
+    cfg.sim.tube_angle_deg = c.tube_angle_deg;
+    cfg.sim.impact_offset = c.impact_offset;
+    cfg.sim.noise_sigma_grey = c.noise_sigma_grey;
+    cfg.sim.seed = c.seed;
+    // Real time: in free-run the camera renders far ahead of the relay, and the release would
+    // land outside the recording.
+    cfg.sim.pace = hw_sim::Pace::RealTime;
+    // Long enough for the slowest tube (10°: release to impact ≈ 0.32 s).
+    cfg.recording.frames = 400;
+    cfg.recording.pre_trigger_frames = 10;
+    cfg.recording.dir = dir.to_path_buf();
+    cfg
+}
+
+/// Errors of one analysed case against the truth.
+#[derive(Default, Debug)]
+pub struct CaseResult {
+    pub failed: Option<String>,
+    /// (estimate − truth, reported σ)
+    pub e: Option<(f64, f64)>,
+    pub psi1: Option<(f64, f64)>,
+    pub psi2: Option<(f64, f64)>,
+    pub beta: Option<(f64, f64)>,
+    /// |Δv|/|v| per phase.
+    pub vel_rel: Vec<f64>,
+    /// |Δω| per phase, rad/s.
+    pub spin_err: Vec<f64>,
+    /// Every reported component's error divided by its σ (e, ψ1, ψ2, β, v, ω): coverage.
+    pub z: Vec<f64>,
+    pub centre_err_px: Vec<f64>,
+    pub rot_err_deg: Vec<f64>,
+    pub thesis_e: Option<f64>,
+    pub thesis_psi1: Option<f64>,
+    pub thesis_psi2: Option<f64>,
+    pub thesis_beta: Option<f64>,
+    pub thesis_vel_rel: Vec<f64>,
+    pub thesis_spin_err: Vec<f64>,
+    pub thesis_centre_err_px: Vec<f64>,
+    pub thesis_rot_err_deg: Vec<f64>,
+    pub analysis_time: Duration,
+    pub read_time: Duration,
+    pub frames_analysed: usize,
+    pub true_psi1: f64,
+    pub true_branch: String,
+}
+
+fn v3(v: &Value) -> V3 {
+    V3::new(
+        v[0].as_f64().unwrap_or(f64::NAN),
+        v[1].as_f64().unwrap_or(f64::NAN),
+        v[2].as_f64().unwrap_or(f64::NAN),
+    )
+}
+
+/// The angle of the rotation between an estimated and a true rotation vector, degrees.
+fn angle_err(rotvec: V3, truth: V3) -> f64 {
+    (Rotation3::from_scaled_axis(rotvec) * Rotation3::from_scaled_axis(truth).inverse())
+        .angle()
+        .to_degrees()
+}
+
+const PHASES: [(&str, &str); 4] = [("a", "pre"), ("b", "pre"), ("a", "post"), ("b", "post")];
+
+pub fn run_case(c: &Case, dir: &Path) -> CaseResult {
+    let mut out = CaseResult::default();
+    let cfg = case_config(c, dir);
+    let recorded = Rig::open(&cfg).map_err(|e| e.to_string()).and_then(|rig| {
+        recorder::record(
+            rig.camera,
+            &rig.trigger,
+            &cfg,
+            Arc::new(AtomicBool::new(false)),
+            &mut |_| {},
+        )
+        .map_err(|e| e.to_string())
+    });
+    let rec = match recorded {
+        Ok(r) => r,
+        Err(e) => {
+            out.failed = Some(format!("recording: {e}"));
+            return out;
+        }
+    };
+    let result = analyse_case(&cfg, &rec.session_dir, &mut out);
+    let _ = std::fs::remove_dir_all(&rec.session_dir);
+    if let Err(e) = result {
+        out.failed = Some(e);
+    }
+    out
+}
+
+fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<(), String> {
+    let truth: Value = std::fs::read_to_string(session.join("truth.json"))
+        .map_err(|e| e.to_string())
+        .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))?;
+    out.true_psi1 = truth["psi1"].as_f64().unwrap_or(f64::NAN);
+    out.true_branch = truth["branch"].as_str().unwrap_or("").into();
+    // Baseline for the analysis time: reading the same frames from disk.
+    let mut reader = SessionReader::open(session).map_err(|e| e.to_string())?;
+    let t0 = Instant::now();
+    let mut buf = Vec::new();
+    for i in 0..reader.frames.len() {
+        reader.read_frame(i, &mut buf).map_err(|e| e.to_string())?;
+    }
+    out.read_time = t0.elapsed();
+    out.frames_analysed = reader.frames.len();
+    let mut src = SessionSource::new(reader);
+    let t0 = Instant::now();
+    let result = analysis::analyze_detailed(&mut src, cfg, &mut |_, _| {});
+    out.analysis_time = t0.elapsed();
+    let (report, details) = result.map_err(|e| e.to_string())?;
+
+    let scalar = |est: &Option<Scalar>, key: &str| {
+        est.as_ref()
+            .zip(truth[key].as_f64())
+            .map(|(e, t)| (e.value - t, e.uncertainty))
+    };
+    out.e = scalar(&report.e, "e");
+    out.psi1 = scalar(&report.psi1, "psi1");
+    out.psi2 = scalar(&report.psi2, "psi2");
+    out.beta = scalar(&report.beta, "beta");
+    for (err, sigma) in [out.e, out.psi1, out.psi2, out.beta].into_iter().flatten() {
+        out.z.push(err / sigma);
+    }
+    let mut true_spins = [V3::zeros(); 4];
+    for (k, (s, ph)) in PHASES.iter().enumerate() {
+        let sp = if *s == "a" {
+            &report.spheres.a
+        } else {
+            &report.spheres.b
+        };
+        let (vel, spin) = if *ph == "pre" {
+            (&sp.velocity_pre_mm_s, &sp.spin_pre_rad_s)
+        } else {
+            (&sp.velocity_post_mm_s, &sp.spin_post_rad_s)
+        };
+        let tv = v3(&truth["spheres"][s][ph]["velocity_mm_s"]);
+        let tw = v3(&truth["spheres"][s][ph]["spin_rad_s"]);
+        true_spins[k] = tw;
+        let ev = V3::from(vel.value);
+        out.vel_rel.push((ev - tv).norm() / tv.norm());
+        for i in 0..3 {
+            out.z.push((ev[i] - tv[i]) / vel.uncertainty[i]);
+        }
+        if let Some(w) = spin {
+            out.spin_err.push((V3::from(w.value) - tw).norm());
+            for i in 0..3 {
+                out.z.push((w.value[i] - tw[i]) / w.uncertainty[i]);
+            }
+        }
+    }
+    // Centres against the truth, per frame and view.
+    let frames: HashMap<u64, &Value> = truth["frames"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .map(|f| (f["frame_id"].as_u64().unwrap_or(u64::MAX), f))
+                .collect()
+        })
+        .unwrap_or_default();
+    for f in &details.obs {
+        let Some(tf) = frames.get(&f.frame_id) else {
+            continue;
+        };
+        for (s, name) in [(0, "a"), (1, "b")] {
+            for (vi, view) in details.views.iter().enumerate() {
+                let Some(m) = &f.spheres[s][vi] else { continue };
+                let tc = &tf["spheres"][name]["views"][view.kind.name()]["centre_px"];
+                let (Some(tu), Some(tv)) = (tc[0].as_f64(), tc[1].as_f64()) else {
+                    continue;
+                };
+                out.centre_err_px
+                    .push((m.centre_px[0] - tu).hypot(m.centre_px[1] - tv));
+                let r = m.blob_centroid_px.map(f64::round);
+                out.thesis_centre_err_px.push((r[0] - tu).hypot(r[1] - tv));
+            }
+        }
+    }
+    // Rotation per frame pair (≥ 4 markers) against the true constant spin of the phase.
+    let rounded = thesis::rounded(&details.obs, &details.views, cfg);
+    for k in 0..4 {
+        for p in details.spins[k].pairs.iter().filter(|p| p.markers >= 4) {
+            out.rot_err_deg
+                .push(angle_err(p.rotvec, true_spins[k] * p.dt_s));
+        }
+        let (pairs, _) = spin::pairs(
+            &rounded,
+            &details.phases[k],
+            k % 2,
+            RotationMethod::Thesis,
+            V3::zeros(),
+            1.3,
+        );
+        for p in pairs.iter().filter(|p| p.markers >= 4) {
+            out.thesis_rot_err_deg
+                .push(angle_err(p.rotvec, true_spins[k] * p.dt_s));
+        }
+    }
+    let th = thesis::estimate(&details.obs, &details.views, cfg, details.impact_time_s);
+    if let Some(c) = th.collision {
+        let diff = |est: Option<f64>, key: &str| est.zip(truth[key].as_f64()).map(|(a, b)| a - b);
+        out.thesis_e = diff(Some(c.e), "e");
+        out.thesis_psi1 = diff(c.psi1, "psi1");
+        out.thesis_psi2 = diff(c.psi2, "psi2");
+        out.thesis_beta = diff(c.beta, "beta");
+    }
+    for (k, (s, ph)) in PHASES.iter().enumerate() {
+        if let Some(v) = th.velocities {
+            let tv = v3(&truth["spheres"][s][ph]["velocity_mm_s"]);
+            out.thesis_vel_rel.push((v[k] - tv).norm() / tv.norm());
+        }
+        if let Some(w) = th.spins {
+            out.thesis_spin_err.push((w[k] - true_spins[k]).norm());
+        }
+    }
+    Ok(())
+}
+
+/// (median, 95th percentile, max) of absolute values.
+pub fn stats(v: &[f64]) -> Option<(f64, f64, f64)> {
+    let mut a: Vec<f64> = v
+        .iter()
+        .map(|x| x.abs())
+        .filter(|x| x.is_finite())
+        .collect();
+    if a.is_empty() {
+        return None;
+    }
+    a.sort_by(f64::total_cmp);
+    let q = |p: f64| a[((a.len() - 1) as f64 * p).round() as usize];
+    Some((q(0.5), q(0.95), a[a.len() - 1]))
+}
+
+pub fn rms(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
+/// Fraction of |z| ≤ 1.
+pub fn coverage(z: &[f64]) -> f64 {
+    z.iter().filter(|x| x.abs() <= 1.0).count() as f64 / z.len().max(1) as f64
+}
+
+/// Runs the sweep and prints the accuracy table.
+pub fn accuracy(quick: bool, dir: &Path) -> String {
+    let results: Vec<(Case, CaseResult)> = sweep(quick)
+        .into_iter()
+        .map(|c| {
+            let r = run_case(&c, dir);
+            (c, r)
+        })
+        .collect();
+    table(&results)
+}
+
+pub fn table(results: &[(Case, CaseResult)]) -> String {
+    let mut s = String::new();
+    let ok: Vec<&CaseResult> = results
+        .iter()
+        .map(|(_, r)| r)
+        .filter(|r| r.failed.is_none())
+        .collect();
+    let _ = writeln!(
+        s,
+        "impactcam bench accuracy — {} simulated experiments, {} analysed",
+        results.len(),
+        ok.len()
+    );
+    let sticking = ok.iter().filter(|r| r.true_branch == "sticking").count();
+    let psi_max = ok.iter().map(|r| r.true_psi1).fold(0.0, f64::max);
+    let _ = writeln!(
+        s,
+        "true branches: {sticking} sticking, {} sliding; true ψ1 from 0 to {psi_max:.2}",
+        ok.len() - sticking
+    );
+    for (c, r) in results {
+        if let Some(f) = &r.failed {
+            let _ = writeln!(
+                s,
+                "  not analysed: tube {}°, offset {}, σ {}, {}×{}: {f}",
+                c.tube_angle_deg, c.impact_offset, c.noise_sigma_grey, c.width, c.height
+            );
+        }
+    }
+    let col = |v: Vec<f64>| {
+        stats(&v)
+            .map(|(m, p, x)| format!("{m:>9.4} {p:>9.4} {x:>9.4}"))
+            .unwrap_or_else(|| format!("{:>29}", "—"))
+    };
+    let all =
+        |f: &dyn Fn(&CaseResult) -> Vec<f64>| ok.iter().flat_map(|r| f(r)).collect::<Vec<f64>>();
+    let _ = writeln!(
+        s,
+        "\n{:<36} {:>29}   {:>29}",
+        "error against truth", "impactcam: median p95 max", "thesis: median p95 max"
+    );
+    let rows: Vec<(&str, Vec<f64>, Vec<f64>)> = vec![
+        (
+            "centre, px",
+            all(&|r| r.centre_err_px.clone()),
+            all(&|r| r.thesis_centre_err_px.clone()),
+        ),
+        (
+            "rotation per pair (≥4 markers), °",
+            all(&|r| r.rot_err_deg.clone()),
+            all(&|r| r.thesis_rot_err_deg.clone()),
+        ),
+        (
+            "e",
+            all(&|r| r.e.map(|x| x.0).into_iter().collect()),
+            all(&|r| r.thesis_e.into_iter().collect()),
+        ),
+        (
+            "ψ1",
+            all(&|r| r.psi1.map(|x| x.0).into_iter().collect()),
+            all(&|r| r.thesis_psi1.into_iter().collect()),
+        ),
+        (
+            "ψ2",
+            all(&|r| r.psi2.map(|x| x.0).into_iter().collect()),
+            all(&|r| r.thesis_psi2.into_iter().collect()),
+        ),
+        (
+            "β",
+            all(&|r| r.beta.map(|x| x.0).into_iter().collect()),
+            all(&|r| r.thesis_beta.into_iter().collect()),
+        ),
+        (
+            "velocity |Δv|/|v|",
+            all(&|r| r.vel_rel.clone()),
+            all(&|r| r.thesis_vel_rel.clone()),
+        ),
+        (
+            "spin |Δω|, rad/s",
+            all(&|r| r.spin_err.clone()),
+            all(&|r| r.thesis_spin_err.clone()),
+        ),
+    ];
+    for (name, a, b) in rows {
+        let _ = writeln!(s, "{name:<36} {}   {}", col(a), col(b));
+    }
+    let _ = writeln!(
+        s,
+        "\ncentre RMS: {:.4} px (thesis integer centres {:.4} px)",
+        rms(&all(&|r| r.centre_err_px.clone())),
+        rms(&all(&|r| r.thesis_centre_err_px.clone()))
+    );
+    let spins_measured = ok.iter().filter(|r| r.psi1.is_some()).count();
+    let _ = writeln!(
+        s,
+        "spin measured in {spins_measured} of {} experiments (ψ, β need all four phases)",
+        ok.len()
+    );
+    let z = all(&|r| r.z.clone());
+    let _ = writeln!(
+        s,
+        "coverage of ±1σ, all {} reported components (e, ψ1, ψ2, β, v, ω): {:.1} %",
+        z.len(),
+        100.0 * coverage(&z)
+    );
+    for (name, pick) in [("e", 0usize), ("ψ1", 1), ("ψ2", 2), ("β", 3)] {
+        let zz = all(&|r| {
+            [r.e, r.psi1, r.psi2, r.beta][pick]
+                .map(|(e, u)| e / u)
+                .into_iter()
+                .collect()
+        });
+        let _ = writeln!(
+            s,
+            "  {name}: {:.0} % of {}",
+            100.0 * coverage(&zz),
+            zz.len()
+        );
+    }
+    let (at, rt, nf) = ok.iter().fold((0.0, 0.0, 0usize), |a, r| {
+        (
+            a.0 + r.analysis_time.as_secs_f64(),
+            a.1 + r.read_time.as_secs_f64(),
+            a.2 + r.frames_analysed,
+        )
+    });
+    if nf > 0 {
+        let _ = writeln!(
+            s,
+            "analysis time: {:.1} ms per 40 frames on one core ({:.0}× the time to read the same frames from disk)",
+            at / nf as f64 * 40.0 * 1e3,
+            at / rt.max(1e-12)
+        );
+    }
+    s
+}

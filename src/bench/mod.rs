@@ -1,0 +1,7 @@
+//! Benchmarks and accuracy reports, printed as ratios or errors against baselines measured in
+//! the same run — never asserted on wall-clock time.
+
+pub mod accuracy;
+pub mod capture;
+
+pub use capture::capture;
