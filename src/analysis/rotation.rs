@@ -57,7 +57,8 @@ pub fn ls9(p: &[V3], q: &[V3]) -> Option<Matrix3<f64>> {
 /// Rotation vector (axis × angle, rad) of a rotation matrix, through the quaternion. A
 /// non-orthogonal matrix (LS9) is first taken to its nearest rotation.
 pub fn rotation_vector(m: &Matrix3<f64>) -> V3 {
-    let rot = Rotation3::from_matrix(m);
+    // Bounded iterations: a degenerate LS9 matrix must not loop forever.
+    let rot = Rotation3::from_matrix_eps(m, 1e-12, 200, Rotation3::identity());
     UnitQuaternion::from_rotation_matrix(&rot).scaled_axis()
 }
 

@@ -49,6 +49,9 @@ pub fn measure_all(
     let mut out = Vec::with_capacity(source.len());
     let mut unmeasured = Vec::new();
     let mut memory: Vec<ViewMemory> = vec![ViewMemory::default(); views.len()];
+    // Primary-view world x of each sphere: (time s, x mm), most recent last.
+    let mut x_history: [Vec<(f64, f64)>; 2] = [Vec::new(), Vec::new()];
+    let max_gap_s = 15.0 / source.source().frame_rate_hz;
     let n = source.len();
     for i in 0..n {
         let meta = source.meta(i);
@@ -61,11 +64,16 @@ pub fn measure_all(
             let lv = levels(&img, view);
             let blobs = find_blobs(&img, view, &lv, r_mean, cfg.analysis.threshold_fraction);
             // Views after the first take identity from it through the x both views see.
+            // Where the primary view does not measure a sphere in this frame, its x is
+            // extrapolated from the primary's recent frames (x has no gravity: a straight line).
             let primary_x: [Option<f64>; 2] = if vi > 0 {
                 [0, 1].map(|s| {
                     spheres[s][0]
                         .as_ref()
                         .map(|m| world_x(&views[0], m.centre_px))
+                        .or_else(|| {
+                            extrapolate(&x_history[s], meta.timestamp_ns as f64 * 1e-9, max_gap_s)
+                        })
                 })
             } else {
                 [None, None]
@@ -83,6 +91,9 @@ pub fn measure_all(
                         });
                     }
                     [None, None]
+                }
+                _ if memory[vi].both_in_previous && blobs.len() == 2 => {
+                    assign_by_continuity(&blobs, &memory[vi])
                 }
                 [None, None] => assign(&blobs, view, &memory[vi]),
                 x => assign_by_x(&blobs, view, x, contact_mm),
@@ -121,6 +132,25 @@ pub fn measure_all(
                     continue;
                 }
                 match refine(&img, view, b.centroid, radius[s], lv.background) {
+                    // A silhouette partly hidden by, or touching, the other sphere is not one
+                    // circle: its fit is too large or rests on too few of its edge points.
+                    Some(f)
+                        if (f.radius - radius[s]).abs() > (0.1 * radius[s]).max(0.7)
+                            || (f.points_used as f64) < 0.6 * f.points_total as f64 =>
+                    {
+                        unmeasured.push(Unmeasured {
+                            frame: i as u64,
+                            view: view.kind.name().into(),
+                            reason: format!(
+                                "{}: silhouette is not one circle (fit radius {:.2} px, expected {:.2} px; {} of {} edge points agree)",
+                                ["a", "b"][s],
+                                f.radius,
+                                radius[s],
+                                f.points_used,
+                                f.points_total
+                            ),
+                        });
+                    }
                     Some(f) => {
                         let radius_mm = cfg.spheres.sphere(s).0 / 2.0;
                         spheres[s][vi] = Some(Measurement {
@@ -157,7 +187,13 @@ pub fn measure_all(
                 });
             }
         }
+        for (s, hist) in x_history.iter_mut().enumerate() {
+            if let (Some(m), Some(view)) = (&spheres[s][0], views.first()) {
+                hist.push((meta.timestamp_ns as f64 * 1e-9, world_x(view, m.centre_px)));
+            }
+        }
         for (vi, mem) in memory.iter_mut().enumerate() {
+            mem.both_in_previous = spheres[0][vi].is_some() && spheres[1][vi].is_some();
             if let (Some(a), Some(b)) = (&spheres[0][vi], &spheres[1][vi]) {
                 let (du, dv) = (
                     b.centre_px[0] - a.centre_px[0],
@@ -178,6 +214,28 @@ pub fn measure_all(
         progress(i + 1, n);
     }
     Ok((out, unmeasured))
+}
+
+/// x at time t on the line through the last (up to) three points, if the last is recent.
+fn extrapolate(history: &[(f64, f64)], t: f64, max_gap_s: f64) -> Option<f64> {
+    let recent = &history[history.len().saturating_sub(3)..];
+    let &(t_last, x_last) = recent.last()?;
+    if t - t_last > max_gap_s {
+        return None;
+    }
+    if recent.len() < 2 {
+        return Some(x_last);
+    }
+    let n = recent.len() as f64;
+    let (mt, mx) = (
+        recent.iter().map(|p| p.0).sum::<f64>() / n,
+        recent.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let (sxy, sxx) = recent.iter().fold((0.0, 0.0), |a, p| {
+        (a.0 + (p.0 - mt) * (p.1 - mx), a.1 + (p.0 - mt).powi(2))
+    });
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    Some(mx + slope * (t - mt))
 }
 
 /// Labels blobs of a secondary view by matching their world x to where the primary view
@@ -215,12 +273,30 @@ fn assign_by_x<'a>(
     }
 }
 
+/// Labels two blobs by least total movement from the previous frame, where both were measured:
+/// a sphere moves a few pixels per frame, far less than the diameter that separates the two.
+fn assign_by_continuity<'a>(blobs: &'a [Blob], memory: &ViewMemory) -> [Option<&'a Blob>; 2] {
+    let (p, q) = (&blobs[0], &blobs[1]);
+    let d = |b: &Blob, s: usize| {
+        memory.last[s]
+            .map(|c| (c[0] - b.centroid[0]).hypot(c[1] - b.centroid[1]))
+            .unwrap_or(0.0)
+    };
+    if d(p, 0) + d(q, 1) <= d(q, 0) + d(p, 1) {
+        [Some(p), Some(q)]
+    } else {
+        [Some(q), Some(p)]
+    }
+}
+
 /// What the labelling remembers per view.
 #[derive(Clone, Copy, Default)]
 struct ViewMemory {
     last: [Option<[f64; 2]>; 2],
     /// Image direction from a to b the last time both were seen.
     a_to_b: Option<[f64; 2]>,
+    /// Whether both were measured in this view in the previous frame.
+    both_in_previous: bool,
 }
 
 /// Labels up to two blobs a/b. The first time both are seen, a is the one with the smaller world

@@ -81,7 +81,7 @@ fn scaled(g: &ViewGeometry, k: f64) -> ViewGeometry {
 
 pub fn case_config(c: &Case, dir: &Path) -> Config {
     let mut cfg = Config::default_config();
-    let k = c.width as f64 / 240.0;
+    let k = (c.width as f64 / 240.0).min(c.height as f64 / 192.0);
     cfg.camera.width = c.width;
     cfg.camera.height = c.height;
     for g in [cfg.geometry.direct.as_mut(), cfg.geometry.mirror.as_mut()]
@@ -372,6 +372,36 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
                 c.tube_angle_deg, c.impact_offset, c.noise_sigma_grey, c.width, c.height
             );
         }
+    }
+    let _ = writeln!(
+        s,
+        "\nper experiment (estimate − truth; centre: worst frame):"
+    );
+    let _ = writeln!(
+        s,
+        "{:>6} {:>6} {:>4} {:>9} {:>7} {:>8} {:>8} {:>8} {:>8} {:>9}",
+        "tube°", "offset", "σ", "size", "ψ1 true", "Δe", "Δψ1", "Δψ2", "Δβ", "centre px"
+    );
+    for (c, r) in results.iter().filter(|(_, r)| r.failed.is_none()) {
+        let f = |x: Option<(f64, f64)>| {
+            x.map(|v| format!("{:>8.4}", v.0))
+                .unwrap_or_else(|| format!("{:>8}", "—"))
+        };
+        let worst = r.centre_err_px.iter().copied().fold(0.0, f64::max);
+        let _ = writeln!(
+            s,
+            "{:>6} {:>6} {:>4} {:>9} {:>7.3} {} {} {} {} {:>9.3}",
+            c.tube_angle_deg,
+            c.impact_offset,
+            c.noise_sigma_grey,
+            format!("{}×{}", c.width, c.height),
+            r.true_psi1,
+            f(r.e),
+            f(r.psi1),
+            f(r.psi2),
+            f(r.beta),
+            worst
+        );
     }
     let col = |v: Vec<f64>| {
         stats(&v)
