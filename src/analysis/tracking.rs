@@ -51,7 +51,9 @@ pub fn measure_all(
     let mut memory: Vec<ViewMemory> = vec![ViewMemory::default(); views.len()];
     // Primary-view world x of each sphere: (time s, x mm), most recent last.
     let mut x_history: [Vec<(f64, f64)>; 2] = [Vec::new(), Vec::new()];
+    // Free flight is a straight line in x and nearly one in the image over a few frames.
     let max_gap_s = 15.0 / source.source().frame_rate_hz;
+    let max_gap_x_s = 60.0 / source.source().frame_rate_hz;
     let n = source.len();
     for i in 0..n {
         let meta = source.meta(i);
@@ -72,7 +74,7 @@ pub fn measure_all(
                         .as_ref()
                         .map(|m| world_x(&views[0], m.centre_px))
                         .or_else(|| {
-                            extrapolate(&x_history[s], meta.timestamp_ns as f64 * 1e-9, max_gap_s)
+                            extrapolate(&x_history[s], meta.timestamp_ns as f64 * 1e-9, max_gap_x_s)
                         })
                 })
             } else {
@@ -95,7 +97,13 @@ pub fn measure_all(
                 _ if memory[vi].both_in_previous && blobs.len() == 2 => {
                     assign_by_continuity(&blobs, &memory[vi])
                 }
-                [None, None] => assign(&blobs, view, &memory[vi]),
+                [None, None] => assign(
+                    &blobs,
+                    view,
+                    &memory[vi],
+                    meta.timestamp_ns as f64 * 1e-9,
+                    max_gap_s,
+                ),
                 x => assign_by_x(&blobs, view, x, contact_mm),
             };
             if let [only] = blobs.as_slice() {
@@ -168,6 +176,7 @@ pub fn measure_all(
                             ),
                         });
                         memory[vi].last[s] = Some(f.centre);
+                        memory[vi].history[s].push((meta.timestamp_ns as f64 * 1e-9, f.centre));
                     }
                     None => unmeasured.push(Unmeasured {
                         frame: i as u64,
@@ -290,13 +299,29 @@ fn assign_by_continuity<'a>(blobs: &'a [Blob], memory: &ViewMemory) -> [Option<&
 }
 
 /// What the labelling remembers per view.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Default)]
 struct ViewMemory {
     last: [Option<[f64; 2]>; 2],
     /// Image direction from a to b the last time both were seen.
     a_to_b: Option<[f64; 2]>,
     /// Whether both were measured in this view in the previous frame.
     both_in_previous: bool,
+    /// Recent image positions of each sphere in this view: (time s, centre px).
+    history: [Vec<(f64, [f64; 2])>; 2],
+}
+
+impl ViewMemory {
+    /// Where sphere s should be at time t: a straight line through its last three positions in
+    /// this view, if the last is at most `max_gap_s` old.
+    fn predict(&self, s: usize, t: f64, max_gap_s: f64) -> Option<[f64; 2]> {
+        let h = &self.history[s];
+        let u: Vec<(f64, f64)> = h.iter().map(|(t, c)| (*t, c[0])).collect();
+        let v: Vec<(f64, f64)> = h.iter().map(|(t, c)| (*t, c[1])).collect();
+        Some([
+            extrapolate(&u, t, max_gap_s)?,
+            extrapolate(&v, t, max_gap_s)?,
+        ])
+    }
 }
 
 /// Labels up to two blobs a/b. The first time both are seen, a is the one with the smaller world
@@ -305,7 +330,13 @@ struct ViewMemory {
 /// contact normal keeps its sign (they approach and leave along it), so b stays on the side a→b
 /// pointed to when both were last seen. A single blob goes to the sphere last seen nearest; a
 /// single merged blob belongs to neither.
-fn assign<'a>(blobs: &'a [Blob], view: &View, memory: &ViewMemory) -> [Option<&'a Blob>; 2] {
+fn assign<'a>(
+    blobs: &'a [Blob],
+    view: &View,
+    memory: &ViewMemory,
+    t: f64,
+    max_gap_s: f64,
+) -> [Option<&'a Blob>; 2] {
     let mut sorted: Vec<&Blob> = blobs.iter().collect();
     sorted.sort_by(|p, q| q.area_px.cmp(&p.area_px));
     sorted.truncate(2);
@@ -327,7 +358,9 @@ fn assign<'a>(blobs: &'a [Blob], view: &View, memory: &ViewMemory) -> [Option<&'
         }
         [p] if !p.merged => {
             let d = |s: usize| {
-                memory.last[s].map(|c| (c[0] - p.centroid[0]).hypot(c[1] - p.centroid[1]))
+                memory
+                    .predict(s, t, max_gap_s)
+                    .map(|c| (c[0] - p.centroid[0]).hypot(c[1] - p.centroid[1]))
             };
             match (d(0), d(1)) {
                 (Some(da), Some(db)) if da <= db => [Some(p), None],
