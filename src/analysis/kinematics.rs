@@ -48,7 +48,13 @@ pub fn fit_line(obs: &[(f64, f64)], t_ref: f64, g: f64) -> Option<LineFit> {
         let p0 = (sx - v * st) / nf;
         let res: Vec<f64> = keep.iter().map(|&(t, x)| x - p0 - v * t).collect();
         let ss: f64 = res.iter().map(|r| r * r).sum();
-        let s2 = if n > 2 { ss / (n - 2) as f64 } else { 0.0 };
+        // Centre errors drift slowly (a marker crossing the limb biases several frames alike);
+        // with lag-one autocorrelation ρ the fit has only n(1−ρ)/(1+ρ) independent frames.
+        let s2 = if n > 2 {
+            ss / (n - 2) as f64 * autocorrelation_factor(&keep, &res)
+        } else {
+            0.0
+        };
         let inv = Matrix2::new(stt, -st, -st, nf) / det;
         let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
         abs.sort_by(f64::total_cmp);
@@ -75,6 +81,23 @@ pub fn fit_line(obs: &[(f64, f64)], t_ref: f64, g: f64) -> Option<LineFit> {
         keep = kept;
     }
     fit
+}
+
+/// (1 + ρ)/(1 − ρ) for the lag-one autocorrelation ρ > 0 of residuals in time order (1 when
+/// ρ ≤ 0), capped at 10.
+fn autocorrelation_factor(points: &[(f64, f64)], res: &[f64]) -> f64 {
+    if res.len() < 4 {
+        return 1.0;
+    }
+    let mut order: Vec<usize> = (0..res.len()).collect();
+    order.sort_by(|&a, &b| points[a].0.total_cmp(&points[b].0));
+    let r: Vec<f64> = order.iter().map(|&i| res[i]).collect();
+    let var: f64 = r.iter().map(|x| x * x).sum();
+    if var <= 0.0 {
+        return 1.0;
+    }
+    let rho = (r.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / var).clamp(0.0, 0.818);
+    (1.0 + rho) / (1.0 - rho)
 }
 
 /// Fits of one sphere on one side of the impact; an axis no view measures is None.
@@ -121,8 +144,31 @@ pub struct Spins {
 }
 
 impl Derived {
-    /// Flattened for covariance propagation: [tau_c, e, n(3), v(12), tau_x].
-    fn to_vec(&self) -> Vec<f64> {
+    /// The inverse of `to_vec`, with the optional members present where `shape` has them.
+    pub fn from_vec(shape: &Derived, v: &[f64]) -> Derived {
+        let v3 = |i: usize| V3::new(v[i], v[i + 1], v[i + 2]);
+        let mut k = 18;
+        let mut next = |present: bool| {
+            present.then(|| {
+                k += 1;
+                v[k - 1]
+            })
+        };
+        Derived {
+            tau_c: v[0],
+            e: v[1],
+            normal: v3(2),
+            velocities: [v3(5), v3(8), v3(11), v3(14)],
+            tau_intersection: v[17],
+            closest_mm: shape.closest_mm,
+            psi1: next(shape.psi1.is_some()),
+            psi2: next(shape.psi2.is_some()),
+            beta: next(shape.beta.is_some()),
+        }
+    }
+
+    /// Flattened for covariance propagation: [tau_c, e, n(3), v(12), tau_x, ψ1?, ψ2?, β?].
+    pub fn to_vec(&self) -> Vec<f64> {
         let mut v = vec![
             self.tau_c,
             self.e,

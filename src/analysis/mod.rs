@@ -391,7 +391,18 @@ pub fn analyze_detailed(
         g,
     )
     .map_err(impact_err)?;
-    let sd = uncertainties(&fits, spins.as_ref(), radii, contact_mm, g).map_err(impact_err)?;
+    let sd = combined_uncertainties(
+        &obs,
+        &views,
+        &ph,
+        &fits,
+        spins.as_ref(),
+        radii,
+        contact_mm,
+        split,
+        g,
+    )
+    .map_err(impact_err)?;
     let t_c = split + d.tau_c;
 
     let three_d = views.len() == 2;
@@ -593,6 +604,59 @@ pub fn analyze_detailed(
             spins: measured,
         },
     ))
+}
+
+/// One-sigma uncertainties of everything derived. Propagating the fit covariances assumes each
+/// frame's error is independent and alike; a frame that pulls a fit (a centre biased by the
+/// neighbouring sphere just before contact, say) breaks that. So the kinematic part is the larger
+/// of the propagated value and a leave-one-frame-out jackknife of the whole derivation; the
+/// spin part is added from the spin fits' own (jackknifed) covariances.
+#[allow(clippy::too_many_arguments)]
+fn combined_uncertainties(
+    obs: &[FrameObs],
+    views: &[View],
+    ph: &[Vec<usize>; 4],
+    fits: &Fits,
+    spins: Option<&Spins>,
+    radii: [f64; 2],
+    contact_mm: f64,
+    split: f64,
+    g: f64,
+) -> Result<kinematics::Derived, ImpactError> {
+    let all = uncertainties(fits, spins, radii, contact_mm, g)?;
+    let without_spin_cov = spins.map(|s| Spins {
+        omega: s.omega,
+        cov: [nalgebra::Matrix3::zeros(); 4],
+    });
+    let kin = uncertainties(fits, without_spin_cov.as_ref(), radii, contact_mm, g)?;
+    let omega = spins.map(|s| &s.omega);
+    let mut frames: Vec<usize> = ph.iter().flatten().copied().collect();
+    frames.sort_unstable();
+    frames.dedup();
+    let mut reps: Vec<Vec<f64>> = Vec::new();
+    for &k in &frames {
+        let without: [Vec<usize>; 4] =
+            [0, 1, 2, 3].map(|j| ph[j].iter().copied().filter(|&f| f != k).collect());
+        let fk: Fits =
+            [0, 1, 2, 3].map(|j| SideFit::fit(&series(obs, views, j % 2, &without[j]), split, g));
+        if let Ok(d) = derive(&fk, omega, radii, contact_mm, g) {
+            reps.push(d.to_vec());
+        }
+    }
+    let (va, vk) = (all.to_vec(), kin.to_vec());
+    let n = reps.len() as f64;
+    let mut out = va.clone();
+    for i in 0..va.len() {
+        let jk = if n >= 3.0 && reps.iter().all(|r| r.len() == va.len()) {
+            let mean = reps.iter().map(|r| r[i]).sum::<f64>() / n;
+            ((n - 1.0) / n * reps.iter().map(|r| (r[i] - mean).powi(2)).sum::<f64>()).sqrt()
+        } else {
+            0.0
+        };
+        let spin_part = (va[i] * va[i] - vk[i] * vk[i]).max(0.0);
+        out[i] = (vk[i].max(jk).powi(2) + spin_part).sqrt();
+    }
+    Ok(kinematics::Derived::from_vec(&all, &out))
 }
 
 fn spin_estimate(f: &SpinFit) -> Vector {

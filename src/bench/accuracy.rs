@@ -119,6 +119,8 @@ pub struct CaseResult {
     pub spin_err: Vec<f64>,
     /// Every reported component's error divided by its σ (e, ψ1, ψ2, β, v, ω): coverage.
     pub z: Vec<f64>,
+    pub z_velocity: Vec<f64>,
+    pub z_spin: Vec<f64>,
     pub centre_err_px: Vec<f64>,
     pub rot_err_deg: Vec<f64>,
     pub thesis_e: Option<f64>,
@@ -233,11 +235,13 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
         out.vel_rel.push((ev - tv).norm() / tv.norm());
         for i in 0..3 {
             out.z.push((ev[i] - tv[i]) / vel.uncertainty[i]);
+            out.z_velocity.push((ev[i] - tv[i]) / vel.uncertainty[i]);
         }
         if let Some(w) = spin {
             out.spin_err.push((V3::from(w.value) - tw).norm());
             for i in 0..3 {
                 out.z.push((w.value[i] - tw[i]) / w.uncertainty[i]);
+                out.z_spin.push((w.value[i] - tw[i]) / w.uncertainty[i]);
             }
         }
     }
@@ -486,6 +490,17 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
                 .into_iter()
                 .collect()
         });
+        let _ = writeln!(
+            s,
+            "  {name}: {:.0} % of {}",
+            100.0 * coverage(&zz),
+            zz.len()
+        );
+    }
+    for (name, zz) in [
+        ("velocity components", all(&|r| r.z_velocity.clone())),
+        ("spin components", all(&|r| r.z_spin.clone())),
+    ] {
         let _ = writeln!(
             s,
             "  {name}: {:.0} % of {}",
