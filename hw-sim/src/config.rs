@@ -38,7 +38,7 @@ pub struct LabConfig {
     /// Free flight from the tube exits to first contact.
     pub flight_time_ms: f64,
     /// In-plane impact parameter as a fraction of the contact distance (0 = head-on). Sets the
-    /// obliquity, hence ψ1.
+    /// obliquity, hence ψ1. With impact_offset² + impact_offset_z² ≥ 1 the spheres miss.
     pub impact_offset: f64,
     /// Out-of-plane impact parameter, same units; makes the contact normal leave the x–y plane.
     pub impact_offset_z: f64,
@@ -143,10 +143,11 @@ impl LabConfig {
         range("tube_angle_deg", self.tube_angle_deg, 5.0, 80.0)?;
         range("tube_length_mm", self.tube_length_mm, 1.0, 5000.0)?;
         range("flight_time_ms", self.flight_time_ms, 1.0, 1000.0)?;
-        range("impact_offset", self.impact_offset, -0.99, 0.99)?;
-        range("impact_offset_z", self.impact_offset_z, -0.99, 0.99)?;
-        if self.impact_offset.powi(2) + self.impact_offset_z.powi(2) >= 0.99 {
-            return Err("sim.impact_offset, sim.impact_offset_z: together they must stay below 1 (the spheres would miss)".into());
+        range("impact_offset", self.impact_offset, -3.0, 3.0)?;
+        range("impact_offset_z", self.impact_offset_z, -3.0, 3.0)?;
+        let b2 = self.impact_offset.powi(2) + self.impact_offset_z.powi(2);
+        if b2 > 0.995 && b2 < 1.0 {
+            return Err("sim.impact_offset, sim.impact_offset_z: a contact this grazing cannot be staged; below 0.995 they collide, from 1 they miss".into());
         }
         range(
             "out_of_plane_velocity_mm_s",

@@ -125,7 +125,9 @@ impl SimLab {
     pub fn truth(&self, frames: &[(u64, u64)]) -> Value {
         let release = self.release_time_s();
         let sc = &self.scenario;
-        let impact_time = release.map(|r| r + sc.impact_tau_s);
+        let impact_time = release
+            .map(|r| r + sc.impact_tau_s)
+            .filter(|t| t.is_finite());
         let state = |b: &Body| json!({"position_mm": v(&b.pos_mm), "velocity_mm_s": v(&b.vel_mm_s), "spin_rad_s": v(&b.spin_rad_s)});
         let per_frame: Vec<Value> = frames
             .iter()
@@ -155,7 +157,7 @@ impl SimLab {
                 json!({"frame_id": id, "time_s": t, "spheres": {"a": spheres[0], "b": spheres[1]}})
             })
             .collect();
-        let o = &sc.outcome;
+        let o = sc.outcome.as_ref();
         json!({
             "schema": "hw-sim.truth/1",
             "material": sc.material,
@@ -163,13 +165,13 @@ impl SimLab {
             "release_time_s": release,
             "impact": {
                 "time_s": impact_time,
-                "normal": o.normal,
+                "normal": o.map(|o| o.normal),
             },
-            "e": o.e,
-            "beta": o.beta,
-            "psi1": o.psi1,
-            "psi2": o.psi2,
-            "branch": if o.sliding { "sliding" } else { "sticking" },
+            "e": o.map(|o| o.e),
+            "beta": o.map(|o| o.beta),
+            "psi1": o.map(|o| o.psi1),
+            "psi2": o.map(|o| o.psi2),
+            "branch": o.map(|o| if o.sliding { "sliding" } else { "sticking" }),
             "spheres": {
                 "a": {"pre": state(&sc.pre[0]), "post": state(&sc.post[0]), "diameter_mm": 2.0 * sc.pre[0].radius_mm},
                 "b": {"pre": state(&sc.pre[1]), "post": state(&sc.post[1]), "diameter_mm": 2.0 * sc.pre[1].radius_mm},

@@ -29,7 +29,8 @@ pub struct Scenario {
     /// States at contact, before and after the operator.
     pub pre: [Body; 2],
     pub post: [Body; 2],
-    pub outcome: Outcome,
+    /// None when the spheres are staged to miss each other (impact parameter ≥ 1).
+    pub outcome: Option<Outcome>,
     /// Marker directions in each sphere's body frame (unit vectors).
     pub markers: [Vec<V3>; 2],
 }
@@ -100,7 +101,13 @@ impl Scenario {
         let side = V3::z().cross(&approach).normalize();
         let up = approach.cross(&side);
         let (b1, b2) = (cfg.impact_offset, cfg.impact_offset_z);
-        let n = approach * (1.0 - b1 * b1 - b2 * b2).sqrt() + side * b1 + up * b2;
+        let miss = b1 * b1 + b2 * b2 >= 1.0;
+        // A miss puts the closest approach, at the same instant, |b| contact distances apart.
+        let n = if miss {
+            side * b1 + up * b2
+        } else {
+            approach * (1.0 - b1 * b1 - b2 * b2).sqrt() + side * b1 + up * b2
+        };
         let t_f = cfg.flight_time_ms / 1000.0;
         let contact = [-n * radius[0], n * radius[1]];
 
@@ -128,14 +135,19 @@ impl Scenario {
             };
         }
         let pre = [ballistic(&exit[0], t_f), ballistic(&exit[1], t_f)];
-        let (pa, pb, outcome) = collide(&pre[0], &pre[1], &material);
-        if outcome.g_n_mm_s >= 0.0 {
-            return Err("sim: the configured tubes do not bring the spheres together".into());
-        }
+        let (post, outcome) = if miss {
+            (pre, None)
+        } else {
+            let (pa, pb, outcome) = collide(&pre[0], &pre[1], &material);
+            if outcome.g_n_mm_s >= 0.0 {
+                return Err("sim: the configured tubes do not bring the spheres together".into());
+            }
+            ([pa, pb], Some(outcome))
+        };
         Ok(Scenario {
             material,
             exit_tau_s: exit_tau,
-            impact_tau_s: exit_tau + t_f,
+            impact_tau_s: if miss { f64::INFINITY } else { exit_tau + t_f },
             tube_top,
             tube_dir,
             roll_axis,
@@ -143,7 +155,7 @@ impl Scenario {
             start_orientation,
             exit,
             pre,
-            post: [pa, pb],
+            post,
             outcome,
             markers,
         })
@@ -237,7 +249,27 @@ mod tests {
         }
         let after = s.state_at(s.impact_tau_s + 0.01);
         assert!((after[1].pos_mm - after[0].pos_mm).norm() > 6.35);
-        assert!((s.outcome.e - s.material.e).abs() < 1e-9);
+        assert!((s.outcome.unwrap().e - s.material.e).abs() < 1e-9);
+    }
+
+    #[test]
+    fn an_impact_parameter_of_one_or_more_is_a_miss() {
+        let cfg = LabConfig {
+            impact_offset: 1.5,
+            ..LabConfig::default()
+        };
+        let s = Scenario::new(&cfg, &spheres()).unwrap();
+        assert!(s.outcome.is_none());
+        let closest = (0..2000)
+            .map(|k| {
+                let st = s.state_at(s.exit_tau_s + k as f64 * 1e-4);
+                (st[1].pos_mm - st[0].pos_mm).norm()
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            (closest - 1.5 * 6.35).abs() < 0.05,
+            "closest approach {closest}"
+        );
     }
 
     #[test]

@@ -97,6 +97,19 @@ pub fn measure_all(
                 _ if memory[vi].both_in_previous && blobs.len() == 2 => {
                     assign_by_continuity(&blobs, &memory[vi])
                 }
+                // A secondary view with nothing from the primary and no continuity of its own
+                // cannot tell a from b once they have been seen together: its projection of the
+                // contact normal does not keep its sign through a grazing pass.
+                [None, None] if vi > 0 && memory[vi].a_to_b.is_some() => {
+                    if !blobs.is_empty() {
+                        unmeasured.push(Unmeasured {
+                            frame: i as u64,
+                            view: view.kind.name().into(),
+                            reason: "identity of a and b unknown in this view (the primary view lost both)".into(),
+                        });
+                    }
+                    [None, None]
+                }
                 [None, None] => assign(
                     &blobs,
                     view,

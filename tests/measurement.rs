@@ -1,0 +1,143 @@
+//! Measurement against the simulator's ground truth: the accuracy goals that hold, the thesis
+//! baseline beaten on the same frames, and what happens when the data cannot give a quantity.
+
+use impactcam::bench::accuracy::{self, rms, stats};
+use std::path::Path;
+use std::process::Command;
+
+#[test]
+fn quick_sweep_meets_the_accuracy_goals_and_beats_the_thesis() {
+    let tmp = tempfile::tempdir().unwrap();
+    let results: Vec<_> = accuracy::sweep(true)
+        .into_iter()
+        .map(|c| {
+            let r = accuracy::run_case(&c, tmp.path());
+            (c, r)
+        })
+        .collect();
+    for (c, r) in &results {
+        assert!(r.failed.is_none(), "{c:?}: {:?}", r.failed);
+    }
+    let all = |f: &dyn Fn(&accuracy::CaseResult) -> Vec<f64>| {
+        results.iter().flat_map(|(_, r)| f(r)).collect::<Vec<f64>>()
+    };
+    let centres = all(&|r| r.centre_err_px.clone());
+    assert!(rms(&centres) <= 0.1, "centre RMS {} px", rms(&centres));
+    let thesis_centres = all(&|r| r.thesis_centre_err_px.clone());
+    assert!(rms(&thesis_centres) > 3.0 * rms(&centres));
+    let e = all(&|r| r.e.map(|x| x.0).into_iter().collect());
+    assert_eq!(e.len(), 4);
+    assert!(
+        stats(&e).unwrap().0 <= 0.01 && stats(&e).unwrap().2 <= 0.03,
+        "{e:?}"
+    );
+    for key in ["psi1", "psi2"] {
+        let v = all(&|r| {
+            if key == "psi1" { r.psi1 } else { r.psi2 }
+                .map(|x| x.0)
+                .into_iter()
+                .collect()
+        });
+        assert!(
+            v.len() >= 2,
+            "{key} measured in only {} experiments",
+            v.len()
+        );
+        assert!(stats(&v).unwrap().0 <= 0.05, "{key}: {v:?}");
+    }
+    let vel = all(&|r| r.vel_rel.clone());
+    assert!(stats(&vel).unwrap().0 <= 0.01, "{vel:?}");
+    let rot = all(&|r| r.rot_err_deg.clone());
+    let rot_thesis = all(&|r| r.thesis_rot_err_deg.clone());
+    assert!(
+        stats(&rot).unwrap().0 < 0.5 * stats(&rot_thesis).unwrap().0,
+        "Kabsch {:?} vs LS9 {:?}",
+        stats(&rot),
+        stats(&rot_thesis)
+    );
+    let thesis_e = all(&|r| r.thesis_e.into_iter().collect());
+    assert!(stats(&thesis_e).unwrap().0 > stats(&e).unwrap().0);
+}
+
+fn run(dir: &Path, toml: &str, extra: &[&str]) -> std::process::Output {
+    std::fs::write(dir.join("c.toml"), toml).unwrap();
+    let mut args = vec!["run", "--config", "c.toml", "--json"];
+    args.extend_from_slice(extra);
+    Command::new(env!("CARGO_BIN_EXE_impactcam"))
+        .args(&args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn without_markers_spins_are_null_with_a_warning_and_e_is_still_measured() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = run(tmp.path(), "[sim]\nmarkers_per_sphere = 0\n", &[]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(r["e"]["value"].as_f64().is_some());
+    for k in ["psi1", "psi2", "beta", "branch_hint"] {
+        assert!(r[k].is_null(), "{k} = {}", r[k]);
+    }
+    assert!(r["spheres"]["a"]["spin_pre_rad_s"].is_null());
+    assert!(r["quality"]["warnings"]
+        .to_string()
+        .contains("spin not measured"));
+}
+
+#[test]
+fn one_view_gives_2d_results_flagged_as_such() {
+    let tmp = tempfile::tempdir().unwrap();
+    let toml = "[geometry.direct]\nregion = [0, 0, 240, 96]\npx_per_mm = 2.1576\norigin_px = [119.5, 44.0]\nu_axis = \"+x\"\nv_axis = \"-y\"\n";
+    let out = run(tmp.path(), toml, &[]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(r["dimensionality"], "2d");
+    assert!(r["quality"]["warnings"].to_string().contains("2-D"));
+    let e = r["e"]["value"].as_f64().unwrap();
+    assert!((e - 0.9).abs() < 0.03, "2-D e {e}");
+}
+
+#[test]
+fn spheres_that_never_touch_are_no_impact_and_no_report() {
+    let tmp = tempfile::tempdir().unwrap();
+    // An impact parameter of 1.6 contact distances: they fly past each other.
+    let out = run(tmp.path(), "[sim]\nimpact_offset = 1.6\n", &[]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no impact found"), "{err}");
+    assert_eq!(
+        err.trim().lines().last().map(|l| l.starts_with("error:")),
+        Some(true),
+        "{err}"
+    );
+    let session = std::fs::read_dir(tmp.path().join("sessions"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    assert!(!session.join("report.json").exists());
+}
+
+#[test]
+fn thesis_rotation_is_available_for_comparison() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = run(tmp.path(), "[analysis]\nrotation = \"thesis\"\n", &[]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(r["e"]["value"].as_f64().is_some());
+}
