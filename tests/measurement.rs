@@ -141,3 +141,33 @@ fn thesis_rotation_is_available_for_comparison() {
     let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(r["e"]["value"].as_f64().is_some());
 }
+
+#[test]
+fn the_mirror_scale_and_offset_are_refined_from_the_redundant_x() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = run(
+        tmp.path(),
+        "[sim]\nmirror_scale_error = 0.03\nmirror_offset_error_px = [2.0, 0.0]\n",
+        &[],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let c = &r["quality"]["calibration"];
+    assert_eq!(c["refined"], true, "{c}");
+    let s0 = c["mirror_px_per_mm_config"].as_f64().unwrap();
+    let s1 = c["mirror_px_per_mm_refined"].as_f64().unwrap();
+    assert!((s1 / s0 - 1.03).abs() < 0.005, "scale {s0} -> {s1}");
+    let du = c["mirror_origin_u_px_refined"].as_f64().unwrap()
+        - c["mirror_origin_u_px_config"].as_f64().unwrap();
+    assert!((du - 2.0).abs() < 0.3, "offset change {du} px");
+    assert!(
+        c["residual_rms_mm_after"].as_f64().unwrap()
+            < 0.3 * c["mirror_minus_direct_x_rms_mm"].as_f64().unwrap(),
+        "{c}"
+    );
+    assert!((r["e"]["value"].as_f64().unwrap() - 0.9).abs() < 0.02);
+}

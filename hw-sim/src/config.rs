@@ -68,6 +68,11 @@ pub struct LabConfig {
     /// The camera disconnects after delivering this many frames.
     pub disconnect_after_frames: Option<u64>,
     pub pace: Pace,
+    /// The real mirror view's magnification differs from the configured one by this fraction
+    /// (what a lab gets from an uncalibrated mirror path); the analysis must find it.
+    pub mirror_scale_error: f64,
+    /// The real mirror view is shifted by this much (u, v) from the configured origin, px.
+    pub mirror_offset_error_px: [f64; 2],
 }
 
 impl Default for LabConfig {
@@ -99,6 +104,8 @@ impl Default for LabConfig {
             drop_probability: 0.0,
             disconnect_after_frames: None,
             pace: Pace::RealTime,
+            mirror_scale_error: 0.0,
+            mirror_offset_error_px: [0.0, 0.0],
         }
     }
 }
@@ -177,6 +184,19 @@ impl LabConfig {
         range("exposure_ms", self.exposure_ms, 0.0, 100.0)?;
         range("supersample", self.supersample as f64, 1.0, 16.0)?;
         range("drop_probability", self.drop_probability, 0.0, 0.5)?;
+        range("mirror_scale_error", self.mirror_scale_error, -0.2, 0.2)?;
+        range(
+            "mirror_offset_error_px[0]",
+            self.mirror_offset_error_px[0],
+            -50.0,
+            50.0,
+        )?;
+        range(
+            "mirror_offset_error_px[1]",
+            self.mirror_offset_error_px[1],
+            -50.0,
+            50.0,
+        )?;
         Ok(())
     }
 }

@@ -49,7 +49,13 @@ pub struct SimLab {
 }
 
 impl SimLab {
-    pub fn new(cfg: LabConfig, scene: Scene) -> Result<Arc<SimLab>, String> {
+    pub fn new(cfg: LabConfig, mut scene: Scene) -> Result<Arc<SimLab>, String> {
+        // The lab's true mirror view, which the caller's nominal geometry may not match.
+        for v in scene.views.iter_mut().filter(|v| v.name == "mirror") {
+            v.px_per_mm *= 1.0 + cfg.mirror_scale_error;
+            v.origin_px[0] += cfg.mirror_offset_error_px[0];
+            v.origin_px[1] += cfg.mirror_offset_error_px[1];
+        }
         let scenario = Scenario::new(&cfg, &scene.spheres)?;
         let clock = Arc::new(LabClock {
             epoch: Instant::now(),

@@ -149,9 +149,21 @@ pub struct FitResiduals {
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Calibration {
+    /// Sphere centres seen in both views.
+    pub frames: u64,
+    /// Mirror-view x minus direct-view x with the config's geometry, mm.
     pub mirror_minus_direct_x_mean_mm: f64,
     pub mirror_minus_direct_x_rms_mm: f64,
-    pub frames: u64,
+    /// Whether the mirror's scale and u-offset were refined from the redundant x (needs ≥ 10
+    /// centres over ≥ 3 mm of x).
+    pub refined: bool,
+    pub mirror_px_per_mm_config: f64,
+    pub mirror_px_per_mm_refined: f64,
+    pub mirror_origin_u_px_config: f64,
+    pub mirror_origin_u_px_refined: f64,
+    /// Mirror x minus direct x after refinement, mm.
+    pub residual_mean_mm_after: f64,
+    pub residual_rms_mm_after: f64,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
