@@ -5,6 +5,7 @@
 pub mod analysis;
 pub mod bench;
 pub mod camera;
+pub mod campaign;
 pub mod config;
 pub mod experiment;
 pub mod recorder;

@@ -53,6 +53,34 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// A series of experiments over tube angles (resumable), then the campaign fit.
+    Sweep {
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Tube angles, a:b:step in degrees (inclusive), e.g. 10:65:5.
+        #[arg(long)]
+        tube_angles: String,
+        /// Simulator only: impact offsets a:b:step (the simulated tubes meet with a horizontal
+        /// relative velocity, so obliquity is set by the offset, not the tube angle).
+        #[arg(long)]
+        impact_offsets: Option<String>,
+        #[arg(long, default_value_t = 1)]
+        repeats: u32,
+        /// Campaign directory; an existing one is resumed.
+        #[arg(long)]
+        dir: Option<PathBuf>,
+    },
+    /// Fit e, mu, beta0 and the break point over many collisions.
+    Fit {
+        /// report.json files, session directories or campaign directories.
+        #[arg(required = true)]
+        paths: Vec<PathBuf>,
+        #[arg(long)]
+        json: bool,
+        /// Also write fit.json, collisions.csv, psi.svg and report.html here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Export a session's frames as a multi-page TIFF (Fiji/ImageJ opens it).
     Export {
         session: PathBuf,
@@ -284,6 +312,72 @@ fn real_main(cli: Cli) -> Result<i32> {
             } else {
                 print!("{}", report_text(&report));
                 println!("report      {}", target.display());
+            }
+            Ok(0)
+        }
+        Command::Sweep {
+            config,
+            tube_angles,
+            impact_offsets,
+            repeats,
+            dir,
+        } => {
+            let cfg = load_config(config.as_deref())?;
+            let angles = impactcam::campaign::parse_range(&tube_angles, "--tube-angles")
+                .map_err(anyhow::Error::msg)?;
+            let offsets = match &impact_offsets {
+                Some(t) => Some(
+                    impactcam::campaign::parse_range(t, "--impact-offsets")
+                        .map_err(anyhow::Error::msg)?,
+                ),
+                None => None,
+            };
+            if repeats == 0 {
+                bail!("--repeats: 0 is not allowed, expected 1 or more");
+            }
+            let dir = dir.unwrap_or_else(|| {
+                PathBuf::from("campaigns").join(impactcam::session::utc_stamp().0)
+            });
+            let abort = abort_flag();
+            let mut status = Status::new();
+            let (_, f) = impactcam::campaign::sweep(
+                &cfg,
+                &dir,
+                &angles,
+                offsets.as_deref(),
+                repeats,
+                abort,
+                &mut |m| status.line(m),
+            )?;
+            print!("{}", impactcam::campaign::fit_text(&f));
+            println!(
+                "campaign    {} (fit.json, collisions.csv, psi.svg, report.html)",
+                dir.display()
+            );
+            Ok(0)
+        }
+        Command::Fit { paths, json, out } => {
+            let mut skipped = Vec::new();
+            let mut collisions = impactcam::campaign::load(&paths, &mut skipped)?;
+            for s in &skipped {
+                eprintln!("skipped: {s}");
+            }
+            if collisions.is_empty() {
+                bail!("no collision with a measured e among the given reports");
+            }
+            let f = impactcam::campaign::fit::fit(&mut collisions);
+            if let Some(out) = out {
+                std::fs::create_dir_all(&out)
+                    .with_context(|| format!("{}: cannot create", out.display()))?;
+                impactcam::campaign::write_outputs(&out, &collisions, &f, "")?;
+            }
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&impactcam::campaign::fit_json(&f))?
+                );
+            } else {
+                print!("{}", impactcam::campaign::fit_text(&f));
             }
             Ok(0)
         }
