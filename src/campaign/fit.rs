@@ -143,6 +143,11 @@ impl Rng {
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         z ^ (z >> 31)
     }
+    fn gaussian(&mut self) -> f64 {
+        let u1 = 1.0 - (self.next() >> 11) as f64 / (1u64 << 53) as f64;
+        let u2 = (self.next() >> 11) as f64 / (1u64 << 53) as f64;
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
 }
 
 fn summarise(value: f64, reps: &mut [f64]) -> FitEstimate {
@@ -229,8 +234,18 @@ pub fn fit(collisions: &mut [Collision]) -> CampaignFit {
         let mut rng = Rng(0xB007);
         let (mut rb, mut rc, mut rbr, mut rmu) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for _ in 0..BOOTSTRAP {
+            // Resample collisions and perturb each by its own stated uncertainty: the scatter
+            // of a few points alone understates how far a biased point can pull a branch.
             let sample: Vec<Point> = (0..pts.len())
-                .map(|_| pts[(rng.next() % pts.len() as u64) as usize])
+                .map(|_| {
+                    let p = pts[(rng.next() % pts.len() as u64) as usize];
+                    (
+                        p.0 + p.2 * rng.gaussian(),
+                        p.1 + p.3 * rng.gaussian(),
+                        p.2,
+                        p.3,
+                    )
+                })
                 .collect();
             if let Some((b, cc)) = fit_hinge(&sample) {
                 rb.push(b);
