@@ -42,9 +42,14 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Analyse a session or a multi-page greyscale TIFF recorded elsewhere.
+    /// Analyse a session, a multi-page greyscale TIFF recorded elsewhere, or (--tracks) centres
+    /// digitised in other software.
     Analyze {
-        path: PathBuf,
+        #[arg(required_unless_present = "tracks", conflicts_with = "tracks")]
+        path: Option<PathBuf>,
+        /// CSV of digitised centres: frame,sphere,view,u,v[,time_s].
+        #[arg(long)]
+        tracks: Option<PathBuf>,
         #[arg(long)]
         config: PathBuf,
         #[arg(long)]
@@ -275,11 +280,42 @@ fn real_main(cli: Cli) -> Result<i32> {
         }
         Command::Analyze {
             path,
+            tracks,
             config,
             json,
             out,
         } => {
             let cfg = Config::load(&config)?;
+            let path = match (path, tracks) {
+                (Some(p), _) => p,
+                (None, Some(t)) => {
+                    let report = impactcam::analysis::analyze_tracks(&t, &cfg)?;
+                    let out_dir = out.unwrap_or_else(|| {
+                        t.parent()
+                            .map(Path::to_path_buf)
+                            .unwrap_or_else(|| PathBuf::from("."))
+                    });
+                    std::fs::create_dir_all(&out_dir)
+                        .with_context(|| format!("{}: cannot create", out_dir.display()))?;
+                    let stem = t
+                        .file_stem()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_default();
+                    let target = out_dir.join(format!("{stem}.report.json"));
+                    impactcam::session::write_atomic(
+                        &target,
+                        experiment::report_json(&report).as_bytes(),
+                    )?;
+                    if json {
+                        print!("{}", experiment::report_json(&report));
+                    } else {
+                        print!("{}", report_text(&report));
+                        println!("report      {}", target.display());
+                    }
+                    return Ok(0);
+                }
+                (None, None) => bail!("give a session, a TIFF stack, or --tracks FILE.csv"),
+            };
             let report = if path.is_dir() {
                 experiment::analyze_session(&path, Some(&cfg), &mut |_, _| {})?
             } else {

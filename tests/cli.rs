@@ -246,3 +246,73 @@ fn bad_input_gets_one_line_naming_the_problem() {
         &["empty", "session"],
     );
 }
+
+#[test]
+fn centres_digitised_elsewhere_give_e_from_a_tracks_csv() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = impactcam(tmp.path(), &["run", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let session = only_session(tmp.path());
+    let truth = json(&session.join("truth.json"));
+    // A digitiser's export: the true centres rounded to 0.01 px, in ImageJ-free pixel coordinates.
+    let mut csv = String::from("frame,sphere,view,u,v,time_s\n");
+    for f in truth["frames"].as_array().unwrap() {
+        for s in ["a", "b"] {
+            for view in ["direct", "mirror"] {
+                let c = &f["spheres"][s]["views"][view]["centre_px"];
+                let (u, v) = (c[0].as_f64().unwrap(), c[1].as_f64().unwrap());
+                // Only what a person would click: spheres inside their view.
+                let inside = if view == "direct" {
+                    (8.0..232.0).contains(&u) && (8.0..88.0).contains(&v)
+                } else {
+                    (8.0..232.0).contains(&u) && (104.0..184.0).contains(&v)
+                };
+                let time = f["time_s"].as_f64().unwrap();
+                let impact = truth["impact"]["time_s"].as_f64().unwrap();
+                // Nor while the two overlap around the impact.
+                if inside && (time - impact).abs() > 0.003 {
+                    csv.push_str(&format!(
+                        "{},{s},{view},{:.2},{:.2},{}\n",
+                        f["frame_id"], u, v, time
+                    ));
+                }
+            }
+        }
+    }
+    std::fs::write(tmp.path().join("tracks.csv"), csv).unwrap();
+    std::fs::write(tmp.path().join("c.toml"), "").unwrap();
+    let an = impactcam(
+        tmp.path(),
+        &[
+            "analyze",
+            "--tracks",
+            "tracks.csv",
+            "--config",
+            "c.toml",
+            "--json",
+        ],
+    );
+    assert!(an.status.success(), "{}", stderr(&an));
+    let r: Value = serde_json::from_slice(&an.stdout).unwrap();
+    assert_eq!(r["source"]["kind"], "tracks");
+    let e = r["e"]["value"].as_f64().unwrap();
+    assert!((e - truth["e"].as_f64().unwrap()).abs() < 0.01, "e {e}");
+    assert!(
+        r["psi1"].is_null()
+            && r["quality"]["warnings"]
+                .to_string()
+                .contains("spin not measured")
+    );
+    assert!((e - report["e"]["value"].as_f64().unwrap()).abs() < 0.02);
+    assert!(tmp.path().join("tracks.report.json").exists());
+
+    let bad = tempfile::tempdir().unwrap();
+    std::fs::write(bad.path().join("c.toml"), "").unwrap();
+    std::fs::write(bad.path().join("bad.csv"), "frame,sphere,u,v\n1,a,3,4\n").unwrap();
+    assert_clean_failure(
+        bad.path(),
+        &["analyze", "--tracks", "bad.csv", "--config", "c.toml"],
+        &["bad.csv", "view"],
+    );
+}

@@ -19,6 +19,7 @@ pub mod rotation;
 pub mod spin;
 pub mod thesis;
 pub mod tracking;
+pub mod tracks;
 
 use crate::config::Config;
 use crate::session::tiff::TiffStack;
@@ -292,6 +293,46 @@ pub fn analyze_detailed(
         }
     }
     let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, progress)?;
+    let input = Input {
+        info,
+        warnings: src.warnings(),
+        frames_dropped: src.frames_dropped(),
+    };
+    analyze_observations(input, obs, unmeasured, views, cfg)
+}
+
+/// Analyses centres digitised elsewhere (see `tracks` for the CSV columns).
+pub fn analyze_tracks(path: &std::path::Path, cfg: &Config) -> Result<Report, AnalysisError> {
+    let views = geometry::views(cfg);
+    let (input, obs) = tracks::read(path, &views, cfg.camera.frame_rate_hz)?;
+    analyze_observations(input, obs, Vec::new(), views, cfg).map(|(r, _)| r)
+}
+
+/// What the analysis needs to know about its input besides the measurements.
+pub struct Input {
+    pub info: Source,
+    pub warnings: Vec<String>,
+    pub frames_dropped: u64,
+}
+
+/// Everything after per-frame measurement: calibration, fits, impact, spins, the report. Also
+/// the entry point for centres digitised elsewhere (`tracks`).
+pub fn analyze_observations(
+    input: Input,
+    obs: Vec<FrameObs>,
+    unmeasured: Vec<Unmeasured>,
+    views: Vec<View>,
+    cfg: &Config,
+) -> Result<(Report, Details), AnalysisError> {
+    let Input {
+        info,
+        warnings: input_warnings,
+        frames_dropped,
+    } = input;
+    let input_err = |message: String| AnalysisError::Input {
+        source_name: info.name.clone(),
+        message,
+    };
     let mut views = views;
     let calibration = calibrate_mirror(&obs, &mut views);
     let g = cfg.analysis.gravity_mm_s2;
@@ -355,7 +396,7 @@ pub fn analyze_detailed(
     }
     // Final fits referenced at the impact time, so p0 and v are the state at impact.
     let fits = fit_all(&obs, &views, split, split, 0.5 * period, g);
-    let mut warnings = src.warnings();
+    let mut warnings = input_warnings;
 
     // Spins, one constant vector per sphere and flight phase.
     let method = cfg.analysis.rotation;
@@ -414,7 +455,7 @@ pub fn analyze_detailed(
             views[0].kind.name()
         ));
     }
-    let dropped = src.frames_dropped();
+    let dropped = frames_dropped;
     if dropped > 0 {
         warnings.push(format!(
             "{dropped} frame(s) were dropped by the camera (gaps in frame ids)"
