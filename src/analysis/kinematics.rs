@@ -214,7 +214,8 @@ fn with_params(fits: &Fits, spins: Option<&[V3; 4]>, p: &[f64]) -> (Fits, Option
     (out, spins)
 }
 
-fn pos_vel(f: &SideFit, tau: f64, g: f64) -> (V3, V3) {
+/// Position and velocity of a fitted trajectory τ after its reference time.
+pub fn pos_vel(f: &SideFit, tau: f64, g: f64) -> (V3, V3) {
     let gv = [0.0, -g, 0.0];
     let mut p = V3::zeros();
     let mut v = V3::zeros();

@@ -511,7 +511,20 @@ pub fn analyze_observations(
         .filter(|f| f.spheres.iter().any(|s| s.iter().any(|m| m.is_some())))
         .map(|f| f.index as usize)
         .collect();
+    let position_at_impact = |s: usize| {
+        let p = kinematics::pos_vel(&fits[s], d.tau_c, g).0;
+        let sd = |i: usize| {
+            fits[s].axes[i]
+                .map(|l| l.cov[(0, 0)].max(0.0).sqrt())
+                .unwrap_or(0.0)
+        };
+        Estimate {
+            value: [p.x, p.y, p.z],
+            uncertainty: [sd(0), sd(1), sd(2)],
+        }
+    };
     let sphere = |s: usize| SphereResult {
+        position_impact_mm: Some(position_at_impact(s)),
         velocity_pre_mm_s: est3(d.velocities[s], sd.velocities[s]),
         velocity_post_mm_s: est3(d.velocities[2 + s], sd.velocities[2 + s]),
         spin_pre_rad_s: measured[s].fit.map(|f| spin_estimate(&f)),

@@ -73,6 +73,10 @@ pub struct Spheres {
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct SphereResult {
+    /// Centre at the impact time from the pre-impact ballistic fit, mm (absent from reports
+    /// written before it was added; the schema's other fields are unchanged).
+    #[serde(default)]
+    pub position_impact_mm: Option<Vector>,
     /// Velocity at the impact time from the pre-impact ballistic fit, mm/s.
     pub velocity_pre_mm_s: Vector,
     pub velocity_post_mm_s: Vector,

@@ -2,7 +2,9 @@
 //! experiments over tube angles, resumable), loading reports for the fit, and the campaign's
 //! outputs (CSV table, ψ2–ψ1 plot as SVG, HTML report). The physics of the fit is in `fit`.
 
+pub mod canvas;
 pub mod fit;
+mod font;
 pub mod plot;
 
 use crate::analysis::report::{Report, REPORT_SCHEMA};
@@ -284,7 +286,26 @@ pub fn write_outputs(
     f: &CampaignFit,
     config_toml: &str,
 ) -> Result<(), CampaignError> {
-    let svg = plot::psi_plot(collisions, f);
+    let (svg, png) = plot::psi_plot(collisions, f);
+    write_atomic(&dir.join("psi.png"), &png).map_err(|e| input(dir, e.to_string()))?;
+    // One trajectory and one residual figure per experiment.
+    let plots = dir.join("plots");
+    std::fs::create_dir_all(&plots).map_err(|e| input(&plots, e.to_string()))?;
+    let g = crate::config::AnalysisConfig::default().gravity_mm_s2;
+    for c in collisions {
+        for (kind, (svg_t, png_t)) in [
+            ("trajectory", plot::trajectory_plot(&c.report, g)),
+            ("residuals", plot::residual_plot(&c.report, g)),
+        ] {
+            write_atomic(
+                &plots.join(format!("{}-{kind}.svg", c.source)),
+                svg_t.as_bytes(),
+            )
+            .map_err(|e| input(&plots, e.to_string()))?;
+            write_atomic(&plots.join(format!("{}-{kind}.png", c.source)), &png_t)
+                .map_err(|e| input(&plots, e.to_string()))?;
+        }
+    }
     let io = |p: &Path, e: crate::session::SessionError| input(p, e.to_string());
     let json = serde_json::to_string_pretty(&fit_json(f)).unwrap_or_default();
     write_atomic(&dir.join("fit.json"), json.as_bytes()).map_err(|e| io(dir, e))?;
