@@ -172,7 +172,7 @@ fn progress_printer(status: &mut Status) -> impl FnMut(Event) + '_ {
             frames_done,
             frames_total,
         } => {
-            if frames_done % 10 == 0 || frames_done == frames_total {
+            if frames_done.is_multiple_of(10) || frames_done == frames_total {
                 status.live(&format!("analysing {}", bar(frames_done, frames_total, 30)))
             }
         }
@@ -194,6 +194,32 @@ fn main() {
     }
 }
 
+/// Exit 130 for a recording the user interrupted (relay released, session kept), else the error.
+fn interrupted_or(e: experiment::ExperimentError) -> Result<i32> {
+    match e {
+        experiment::ExperimentError::Record(impactcam::recorder::RecordError::Interrupted(dir)) => {
+            eprintln!(
+                "interrupted: relay released; session {} marked incomplete",
+                dir.display()
+            );
+            Ok(130)
+        }
+        e => Err(e.into()),
+    }
+}
+
+/// Writes a report and prints it (JSON or summary).
+fn deliver(report: &impactcam::analysis::report::Report, target: &Path, json: bool) -> Result<i32> {
+    impactcam::session::write_atomic(target, experiment::report_json(report).as_bytes())?;
+    if json {
+        print!("{}", experiment::report_json(report));
+    } else {
+        print!("{}", report_text(report));
+        println!("report      {}", target.display());
+    }
+    Ok(0)
+}
+
 fn real_main(cli: Cli) -> Result<i32> {
     match cli.command {
         Command::Run { config, json } => {
@@ -203,16 +229,7 @@ fn real_main(cli: Cli) -> Result<i32> {
             let result = experiment::run(&cfg, abort, &mut progress_printer(&mut status));
             let (rec, report) = match result {
                 Ok(r) => r,
-                Err(experiment::ExperimentError::Record(
-                    impactcam::recorder::RecordError::Interrupted(dir),
-                )) => {
-                    eprintln!(
-                        "interrupted: relay released; session {} marked incomplete",
-                        dir.display()
-                    );
-                    return Ok(130);
-                }
-                Err(e) => return Err(e.into()),
+                Err(e) => return interrupted_or(e),
             };
             status.line(&format!("analysed {} frames", report.quality.frames_total));
             if json {
@@ -247,16 +264,7 @@ fn real_main(cli: Cli) -> Result<i32> {
                         1
                     })
                 }
-                Err(experiment::ExperimentError::Record(
-                    impactcam::recorder::RecordError::Interrupted(dir),
-                )) => {
-                    eprintln!(
-                        "interrupted: relay released; session {} marked incomplete",
-                        dir.display()
-                    );
-                    Ok(130)
-                }
-                Err(e) => Err(e.into()),
+                Err(e) => interrupted_or(e),
             }
         }
         Command::Replay { session, json } => {
@@ -342,14 +350,7 @@ fn real_main(cli: Cli) -> Result<i32> {
                     .unwrap_or_default();
                 out_dir.join(format!("{stem}.report.json"))
             };
-            impactcam::session::write_atomic(&target, experiment::report_json(&report).as_bytes())?;
-            if json {
-                print!("{}", experiment::report_json(&report));
-            } else {
-                print!("{}", report_text(&report));
-                println!("report      {}", target.display());
-            }
-            Ok(0)
+            deliver(&report, &target, json)
         }
         Command::Sweep {
             config,

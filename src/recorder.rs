@@ -250,7 +250,7 @@ pub fn record(
                     break;
                 }
                 let n = saved.len() as u64;
-                if n % 10 == 0 || n == total {
+                if n.is_multiple_of(10) || n == total {
                     progress(Progress::Frames { recorded: n, total });
                 }
             }

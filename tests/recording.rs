@@ -76,7 +76,7 @@ fn camera_disconnect_ends_the_recording_cleanly_with_frames_kept() {
         reader.frames.len()
     );
     assert_eq!(reader.frames.len() as u64, reader.manifest.frames_recorded);
-    assert_eq!(*relay_states(&lab).last().unwrap(), false);
+    assert!(!*relay_states(&lab).last().unwrap());
 }
 
 #[test]

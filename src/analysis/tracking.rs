@@ -270,7 +270,7 @@ fn assign_by_x<'a>(
     contact_mm: f64,
 ) -> [Option<&'a Blob>; 2] {
     let mut sorted: Vec<&Blob> = blobs.iter().filter(|b| !b.merged).collect();
-    sorted.sort_by(|p, q| q.area_px.cmp(&p.area_px));
+    sorted.sort_by_key(|b| std::cmp::Reverse(b.area_px));
     sorted.truncate(2);
     // Distance of a blob from a sphere's primary x; a sphere not measured there matches nothing.
     let cost = |b: &Blob, s: usize| x[s].map(|xs| (world_x(view, b.centroid) - xs).abs());
@@ -351,7 +351,7 @@ fn assign<'a>(
     max_gap_s: f64,
 ) -> [Option<&'a Blob>; 2] {
     let mut sorted: Vec<&Blob> = blobs.iter().collect();
-    sorted.sort_by(|p, q| q.area_px.cmp(&p.area_px));
+    sorted.sort_by_key(|b| std::cmp::Reverse(b.area_px));
     sorted.truncate(2);
     match sorted.as_slice() {
         [p, q] => {

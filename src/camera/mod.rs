@@ -8,7 +8,7 @@
 pub mod sim;
 
 use crate::config::{CameraBackend, Config, PixelFormat};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 /// One frame as delivered by a camera.
@@ -24,7 +24,8 @@ pub struct Frame {
     pub data: Vec<u8>,
 }
 
-#[derive(Clone, Debug, Serialize, PartialEq)]
+/// What a camera is; also the manifest's `camera` record.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct CameraInfo {
     pub backend: String,
     pub device: String,

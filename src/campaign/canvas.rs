@@ -100,8 +100,8 @@ impl Raster {
         }
         let i = (y as usize * self.w + x as usize) * 3;
         let a = alpha.min(1.0);
-        for k in 0..3 {
-            self.px[i + k] = (self.px[i + k] as f64 * (1.0 - a) + c[k] as f64 * a).round() as u8;
+        for (p, &ck) in self.px[i..i + 3].iter_mut().zip(c.iter()) {
+            *p = (*p as f64 * (1.0 - a) + ck as f64 * a).round() as u8;
         }
     }
 
@@ -170,7 +170,7 @@ impl Canvas for Raster {
             for gy in 0..GLYPH_H {
                 for gx in 0..GLYPH_W {
                     let i = gy * GLYPH_W + gx;
-                    let nibble = if i % 2 == 0 {
+                    let nibble = if i.is_multiple_of(2) {
                         data[i / 2] >> 4
                     } else {
                         data[i / 2] & 15

@@ -7,7 +7,7 @@
 pub mod tiff;
 
 use crate::camera::CameraInfo;
-use crate::config::{Config, PixelFormat};
+use crate::config::Config;
 use crate::trigger::TriggerInfo;
 use serde::{Deserialize, Serialize};
 use std::fs::File;
@@ -40,29 +40,6 @@ pub enum Status {
     Complete,
     Incomplete,
     Failed,
-}
-
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct ManifestCamera {
-    pub backend: String,
-    pub device: String,
-    pub width: u32,
-    pub height: u32,
-    pub pixel_format: PixelFormat,
-    pub frame_rate_hz: f64,
-}
-
-impl From<&CameraInfo> for ManifestCamera {
-    fn from(c: &CameraInfo) -> Self {
-        ManifestCamera {
-            backend: c.backend.clone(),
-            device: c.device.clone(),
-            width: c.width,
-            height: c.height,
-            pixel_format: c.pixel_format,
-            frame_rate_hz: c.frame_rate_hz,
-        }
-    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -101,7 +78,7 @@ pub struct Manifest {
     pub reason: Option<String>,
     pub software_version: String,
     pub created_utc: String,
-    pub camera: ManifestCamera,
+    pub camera: CameraInfo,
     pub trigger: ManifestTrigger,
     pub frames_recorded: u64,
     pub frames_dropped: u64,
@@ -196,7 +173,7 @@ impl SessionWriter {
             reason: None,
             software_version: env!("CARGO_PKG_VERSION").into(),
             created_utc: iso,
-            camera: camera.into(),
+            camera: camera.clone(),
             trigger,
             frames_recorded: 0,
             frames_dropped: 0,
@@ -410,6 +387,7 @@ impl SessionReader {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::PixelFormat;
     use std::fs::OpenOptions;
 
     fn info() -> CameraInfo {
