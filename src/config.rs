@@ -115,6 +115,10 @@ pub enum TriggerBackend {
 pub enum RelayProtocol {
     /// LCUS / CH340 modules: `A0 ch state sum`, 9600 8N1.
     Lcus,
+    /// Numato Lab boards: `relay on N\r`, echoed, state read back.
+    Numato,
+    /// Bytes from `generic_on_hex` / `generic_off_hex`, optional reply `generic_reply_hex`.
+    Generic,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -130,6 +134,12 @@ pub struct TriggerConfig {
     pub relay_pulse_ms: f64,
     /// Hard ceiling on any closing of the relay; `relay_pulse_ms` may not exceed it.
     pub relay_pulse_ms_max: f64,
+    /// protocol = "generic": bytes that close the relay, hex ("A0 01 01 A2").
+    pub generic_on_hex: Option<String>,
+    /// protocol = "generic": bytes that open the relay.
+    pub generic_off_hex: Option<String>,
+    /// protocol = "generic": bytes the module answers after each switch, if it does.
+    pub generic_reply_hex: Option<String>,
 }
 
 impl Default for TriggerConfig {
@@ -142,6 +152,9 @@ impl Default for TriggerConfig {
             baud_rate: 9600,
             relay_pulse_ms: 50.0,
             relay_pulse_ms_max: 500.0,
+            generic_on_hex: None,
+            generic_off_hex: None,
+            generic_reply_hex: None,
         }
     }
 }
@@ -395,8 +408,29 @@ impl Config {
         if t.backend == TriggerBackend::Serial && t.port.is_empty() {
             return Err("trigger.port: missing, expected the relay module's serial device (e.g. \"/dev/ttyUSB0\") for backend = \"serial\"".into());
         }
-        if t.channel == 0 {
-            return Err("trigger.channel: 0 is not allowed, expected 1 or more".into());
+        if t.channel == 0 && t.protocol == RelayProtocol::Lcus {
+            return Err(
+                "trigger.channel: 0 is not allowed for protocol = \"lcus\", expected 1 or more"
+                    .into(),
+            );
+        }
+        if t.protocol == RelayProtocol::Generic {
+            for (key, v) in [
+                ("generic_on_hex", &t.generic_on_hex),
+                ("generic_off_hex", &t.generic_off_hex),
+            ] {
+                if v.as_deref()
+                    .and_then(crate::trigger::serial::parse_hex)
+                    .is_none_or(|b| b.is_empty())
+                {
+                    return Err(format!("trigger.{key}: missing or not hex bytes, expected e.g. \"A0 01 01 A2\" for protocol = \"generic\""));
+                }
+            }
+        }
+        if let Some(r) = &t.generic_reply_hex {
+            if crate::trigger::serial::parse_hex(r).is_none() {
+                return Err(format!("trigger.generic_reply_hex: {r:?} is not hex bytes"));
+            }
         }
         let r = &self.recording;
         if r.frames < 2 {

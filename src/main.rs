@@ -92,6 +92,8 @@ enum Command {
         #[arg(long)]
         tiff: PathBuf,
     },
+    /// What this machine offers: cameras (by built-in backend) and serial ports.
+    Devices,
     /// Configuration: check a file, or print the embedded default.
     Config {
         #[command(subcommand)]
@@ -122,6 +124,13 @@ enum BenchWhat {
         /// Where the disk measurements write (a temporary directory inside it).
         #[arg(long, default_value = ".")]
         dir: PathBuf,
+    },
+    /// Relay pulse latency and jitter over a serial line, against emulated modules.
+    Relay {
+        #[arg(long, default_value_t = 50)]
+        pulses: usize,
+        #[arg(long, default_value_t = 20.0)]
+        pulse_ms: f64,
     },
     /// Accuracy of impactcam's methods and the thesis's against simulated ground truth.
     Accuracy {
@@ -424,6 +433,25 @@ fn real_main(cli: Cli) -> Result<i32> {
             println!("wrote {n} frames to {}", tiff.display());
             Ok(0)
         }
+        Command::Devices => {
+            println!("cameras:");
+            println!("  sim          the simulated lab (always available)");
+            println!("  aravis       not built into this binary (GenICam cameras need the aravis feature)");
+            println!(
+                "  v4l          not built into this binary (V4L2 cameras need the v4l feature)"
+            );
+            println!("serial ports (relay modules):");
+            match serialport::available_ports() {
+                Ok(ports) if ports.is_empty() => println!("  none found"),
+                Ok(ports) => {
+                    for p in ports {
+                        println!("  {}  {:?}", p.port_name, p.port_type);
+                    }
+                }
+                Err(e) => println!("  cannot list: {e}"),
+            }
+            Ok(0)
+        }
         Command::Config { action } => match action {
             ConfigAction::Check { file } => {
                 let cfg = Config::load(&file)?;
@@ -450,6 +478,16 @@ fn real_main(cli: Cli) -> Result<i32> {
                     bail!("--frames: {frames} is too few, expected at least 10");
                 }
                 print!("{}", impactcam::bench::capture(frames, &dir)?);
+                Ok(0)
+            }
+            BenchWhat::Relay { pulses, pulse_ms } => {
+                if pulses == 0 || !(pulse_ms > 0.0 && pulse_ms <= 500.0) {
+                    bail!("--pulses must be at least 1 and --pulse-ms between 0 and 500");
+                }
+                print!(
+                    "{}",
+                    impactcam::bench::relay::relay(pulses, pulse_ms).map_err(anyhow::Error::msg)?
+                );
                 Ok(0)
             }
             BenchWhat::Accuracy { quick, dir } => {

@@ -316,3 +316,18 @@ fn centres_digitised_elsewhere_give_e_from_a_tracks_csv() {
         &["bad.csv", "view"],
     );
 }
+
+#[test]
+fn every_shipped_config_passes_config_check() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
+    let mut n = 0;
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "toml") {
+            let out = impactcam(&dir, &["config", "check", p.to_str().unwrap()]);
+            assert!(out.status.success(), "{}: {}", p.display(), stderr(&out));
+            n += 1;
+        }
+    }
+    assert!(n >= 3);
+}

@@ -3,5 +3,6 @@
 
 pub mod accuracy;
 pub mod capture;
+pub mod relay;
 
 pub use capture::capture;

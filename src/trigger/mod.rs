@@ -5,6 +5,7 @@
 //! `relay_pulse_ms_max`, and it cannot be fired without proof that the camera is delivering
 //! frames (`CameraLive`, which only the recorder can create).
 
+pub mod emulator;
 pub mod serial;
 
 use crate::config::{Config, TriggerBackend};
@@ -79,23 +80,18 @@ impl Trigger {
         let t = &cfg.trigger;
         let relay: Box<dyn Relay> = match t.backend {
             TriggerBackend::None => Box::new(NoRelay),
-            TriggerBackend::Serial => Box::new(serial::LcusRelay::open(
-                &t.port,
-                t.baud_rate,
-                t.channel,
-                "serial",
-            )?),
+            TriggerBackend::Serial => Box::new(serial::SerialRelay::open(t, &t.port, "serial")?),
             TriggerBackend::Sim => {
                 let port = sim_port.ok_or_else(|| TriggerError::Open {
                     port: "sim".into(),
                     message: "no simulated lab was set up".into(),
                 })?;
-                Box::new(serial::LcusRelay::open(
-                    port,
-                    t.baud_rate,
-                    t.channel,
-                    "sim",
-                )?)
+                // The simulated module speaks LCUS, whatever the config says for real modules.
+                let lcus = crate::config::TriggerConfig {
+                    protocol: crate::config::RelayProtocol::Lcus,
+                    ..t.clone()
+                };
+                Box::new(serial::SerialRelay::open(&lcus, port, "sim")?)
             }
         };
         Ok(Trigger::new(relay, t.relay_pulse_ms, t.relay_pulse_ms_max))
