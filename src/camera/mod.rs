@@ -5,6 +5,8 @@
 //! and timestamps. It does not buffer, record or interpret frames (that is `recorder` and
 //! `analysis`).
 
+#[cfg(feature = "aravis")]
+pub mod aravis;
 pub mod sim;
 
 use crate::config::{CameraBackend, Config, PixelFormat};
@@ -79,6 +81,9 @@ pub fn open(
             })?;
             Ok(Box::new(sim::SimBackend::new(lab.clone(), &cfg.camera)))
         }
+        #[cfg(feature = "aravis")]
+        CameraBackend::Aravis => Ok(Box::new(aravis::AravisBackend::open(&cfg.camera)?)),
+        #[cfg(not(feature = "aravis"))]
         CameraBackend::Aravis => Err(CameraError::NotBuilt("aravis".into())),
         CameraBackend::V4l => Err(CameraError::NotBuilt("v4l".into())),
     }
