@@ -108,6 +108,8 @@ pub enum TriggerBackend {
     Serial,
     /// Nothing is fired (footage of something released by hand or by other equipment).
     None,
+    /// A line of a Linux GPIO chip (`--features gpio`).
+    Gpio,
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
@@ -140,6 +142,12 @@ pub struct TriggerConfig {
     pub generic_off_hex: Option<String>,
     /// protocol = "generic": bytes the module answers after each switch, if it does.
     pub generic_reply_hex: Option<String>,
+    /// backend = "gpio": the chip device.
+    pub gpio_chip: String,
+    /// backend = "gpio": the line offset on the chip.
+    pub gpio_line: u32,
+    /// backend = "gpio": the relay closes on a low level.
+    pub gpio_active_low: bool,
 }
 
 impl Default for TriggerConfig {
@@ -155,6 +163,9 @@ impl Default for TriggerConfig {
             generic_on_hex: None,
             generic_off_hex: None,
             generic_reply_hex: None,
+            gpio_chip: "/dev/gpiochip0".into(),
+            gpio_line: 0,
+            gpio_active_low: false,
         }
     }
 }

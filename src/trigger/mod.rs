@@ -6,6 +6,8 @@
 //! frames (`CameraLive`, which only the recorder can create).
 
 pub mod emulator;
+#[cfg(feature = "gpio")]
+pub mod gpio;
 pub mod serial;
 
 use crate::config::{Config, TriggerBackend};
@@ -81,6 +83,15 @@ impl Trigger {
         let relay: Box<dyn Relay> = match t.backend {
             TriggerBackend::None => Box::new(NoRelay),
             TriggerBackend::Serial => Box::new(serial::SerialRelay::open(t, &t.port, "serial")?),
+            #[cfg(feature = "gpio")]
+            TriggerBackend::Gpio => Box::new(gpio::GpioRelay::open(t)?),
+            #[cfg(not(feature = "gpio"))]
+            TriggerBackend::Gpio => {
+                return Err(TriggerError::Open {
+                    port: t.gpio_chip.clone(),
+                    message: "the gpio trigger backend is not built into this binary (rebuild with `--features gpio`)".into(),
+                })
+            }
             TriggerBackend::Sim => {
                 let port = sim_port.ok_or_else(|| TriggerError::Open {
                     port: "sim".into(),
