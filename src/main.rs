@@ -435,11 +435,9 @@ fn real_main(cli: Cli) -> Result<i32> {
         }
         Command::Devices => {
             println!("cameras:");
-            println!("  sim          the simulated lab (always available)");
-            println!("  aravis       not built into this binary (GenICam cameras need the aravis feature)");
-            println!(
-                "  v4l          not built into this binary (V4L2 cameras need the v4l feature)"
-            );
+            for line in impactcam::camera::list() {
+                println!("  {line}");
+            }
             println!("serial ports (relay modules):");
             match serialport::available_ports() {
                 Ok(ports) if ports.is_empty() => println!("  none found"),

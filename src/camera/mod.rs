@@ -8,6 +8,9 @@
 #[cfg(feature = "aravis")]
 pub mod aravis;
 pub mod sim;
+#[cfg(feature = "v4l")]
+pub mod v4l;
+pub mod v4l_format;
 
 use crate::config::{CameraBackend, Config, PixelFormat};
 use serde::{Deserialize, Serialize};
@@ -85,6 +88,58 @@ pub fn open(
         CameraBackend::Aravis => Ok(Box::new(aravis::AravisBackend::open(&cfg.camera)?)),
         #[cfg(not(feature = "aravis"))]
         CameraBackend::Aravis => Err(CameraError::NotBuilt("aravis".into())),
+        #[cfg(feature = "v4l")]
+        CameraBackend::V4l => Ok(Box::new(v4l::V4lBackend::open(&cfg.camera)?)),
+        #[cfg(not(feature = "v4l"))]
         CameraBackend::V4l => Err(CameraError::NotBuilt("v4l".into())),
     }
+}
+
+/// One line per camera this binary can see: the simulator, Aravis devices (discovery, on every
+/// interface: this sends GigE Vision broadcasts), V4L2 device nodes.
+pub fn list() -> Vec<String> {
+    let mut out = vec!["sim          the simulated lab (always available)".to_string()];
+    #[cfg(feature = "aravis")]
+    {
+        // SAFETY: plain C calls; the returned strings are owned by aravis and copied at once.
+        unsafe {
+            aravis_sys::arv_update_device_list();
+            let n = aravis_sys::arv_get_n_devices();
+            for i in 0..n {
+                let id = aravis_sys::arv_get_device_id(i);
+                if !id.is_null() {
+                    out.push(format!(
+                        "aravis       {}",
+                        std::ffi::CStr::from_ptr(id).to_string_lossy()
+                    ));
+                }
+            }
+            if n == 0 {
+                out.push("aravis       no GenICam camera found".into());
+            }
+        }
+    }
+    #[cfg(not(feature = "aravis"))]
+    out.push(
+        "aravis       not built into this binary (GenICam cameras need --features aravis)".into(),
+    );
+    #[cfg(feature = "v4l")]
+    {
+        let mut nodes: Vec<String> = std::fs::read_dir("/dev")
+            .map(|d| {
+                d.filter_map(|e| e.ok())
+                    .map(|e| e.path().display().to_string())
+                    .filter(|p| p.starts_with("/dev/video"))
+                    .collect()
+            })
+            .unwrap_or_default();
+        nodes.sort();
+        if nodes.is_empty() {
+            out.push("v4l          no /dev/video* device".into());
+        }
+        out.extend(nodes.into_iter().map(|n| format!("v4l          {n}")));
+    }
+    #[cfg(not(feature = "v4l"))]
+    out.push("v4l          not built into this binary (V4L2 cameras need --features v4l)".into());
+    out
 }
