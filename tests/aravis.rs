@@ -74,3 +74,53 @@ fn capture_from_the_fake_genicam_camera_records_400_frames_without_drops() {
         "mean frame interval {mean} ns"
     );
 }
+
+/// The fake GigE Vision camera (`arv-fake-gv-camera-0.8` from aravis-tools; `.ci/run` unpacks it
+/// and sets ARV_FAKE_GV_CAMERA) on 127.0.0.1, and impactcam capturing from it over the real
+/// GigE Vision code path — both inside a network namespace that has only loopback, so discovery
+/// broadcasts reach nothing outside this machine.
+#[test]
+fn capture_from_the_fake_gige_camera_on_loopback_in_a_namespace() {
+    let fake =
+        std::env::var("ARV_FAKE_GV_CAMERA").unwrap_or_else(|_| "arv-fake-gv-camera-0.8".into());
+    let found = Command::new(&fake)
+        .arg("--help")
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    assert!(found, "the fake GigE camera {fake:?} is not installed: run .ci/run, or set ARV_FAKE_GV_CAMERA to arv-fake-gv-camera-0.8 from Debian's aravis-tools");
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = CONFIG
+        .replace("device = \"Fake_1\"", "device = \"127.0.0.1\"")
+        .replace("frame_rate_hz = 500.0", "frame_rate_hz = 100.0")
+        .replace("frames = 400", "frames = 100");
+    std::fs::write(tmp.path().join("gv.toml"), cfg).unwrap();
+    let script = format!(
+        "ip link set lo up && {{ \"{fake}\" -i 127.0.0.1 >/dev/null 2>&1 & fake=$!; sleep 1; \"{bin}\" capture --config gv.toml; rc=$?; kill $fake; exit $rc; }}",
+        bin = env!("CARGO_BIN_EXE_impactcam")
+    );
+    let out = Command::new("unshare")
+        .args(["-n", "sh", "-c", &script])
+        .current_dir(tmp.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let session = std::fs::read_dir(tmp.path().join("sessions"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(session.join("session.json")).unwrap())
+            .unwrap();
+    assert_eq!(m["status"], "complete");
+    assert_eq!(m["frames_recorded"], 100);
+    assert_eq!(m["frames_dropped"], 0);
+    assert_eq!(m["camera"]["backend"], "aravis");
+}
