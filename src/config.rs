@@ -83,6 +83,19 @@ pub struct CameraConfig {
     pub frame_rate_hz: f64,
     /// Exposure; None leaves the camera's own setting.
     pub exposure_us: Option<f64>,
+    /// How the camera starts each exposure: "free_run" (its own clock), "software" (impactcam
+    /// triggers each frame), or "hardware" (a trigger input, `trigger_line`). Aravis only.
+    pub trigger_mode: CameraTrigger,
+    /// The trigger input for trigger_mode = "hardware", e.g. "Line1".
+    pub trigger_line: String,
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum CameraTrigger {
+    FreeRun,
+    Software,
+    Hardware,
 }
 
 impl Default for CameraConfig {
@@ -95,6 +108,8 @@ impl Default for CameraConfig {
             pixel_format: PixelFormat::Mono8,
             frame_rate_hz: 1000.0,
             exposure_us: None,
+            trigger_mode: CameraTrigger::FreeRun,
+            trigger_line: "Line1".into(),
         }
     }
 }
@@ -400,6 +415,12 @@ impl Config {
         }
         if let Some(e) = c.exposure_us {
             pos("camera.exposure_us", e)?;
+        }
+        if c.trigger_mode != CameraTrigger::FreeRun && c.backend != CameraBackend::Aravis {
+            return Err(format!(
+                "camera.trigger_mode: {:?} needs backend = \"aravis\"; other backends run free",
+                c.trigger_mode
+            ));
         }
         let t = &self.trigger;
         pos("trigger.relay_pulse_ms", t.relay_pulse_ms)?;
