@@ -7,6 +7,7 @@ pub mod bench;
 pub mod camera;
 pub mod campaign;
 pub mod config;
+pub mod daemon;
 pub mod experiment;
 pub mod recorder;
 pub mod session;

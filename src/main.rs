@@ -58,6 +58,14 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// The lab daemon: HTTP API and web page to run and watch experiments.
+    Serve {
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Address to listen on; off loopback a token (daemon.token or IMPACTCAM_TOKEN) is required.
+        #[arg(long)]
+        listen: Option<String>,
+    },
     /// A series of experiments over tube angles (resumable), then the campaign fit.
     Sweep {
         #[arg(long)]
@@ -360,6 +368,16 @@ fn real_main(cli: Cli) -> Result<i32> {
                 out_dir.join(format!("{stem}.report.json"))
             };
             deliver(&report, &target, json)
+        }
+        Command::Serve { config, listen } => {
+            let cfg = load_config(config.as_deref())?;
+            let listen = listen.unwrap_or_else(|| cfg.daemon.listen.clone());
+            impactcam::daemon::serve(cfg, &listen, &mut |addr| {
+                println!("listening on http://{addr}");
+                use std::io::Write;
+                let _ = std::io::stdout().flush();
+            })?;
+            Ok(0)
         }
         Command::Sweep {
             config,

@@ -1,0 +1,256 @@
+//! The lab daemon over real HTTP on loopback: the API contract, one experiment at a time,
+//! progress events, validation, the token, and shutdown on SIGTERM.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+struct Daemon {
+    child: Child,
+    addr: String,
+    _dir: tempfile::TempDir,
+}
+
+impl Daemon {
+    fn start(env_token: Option<&str>, config: &str) -> Daemon {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("c.toml"), config).unwrap();
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_impactcam"));
+        cmd.args(["serve", "--config", "c.toml", "--listen", "127.0.0.1:0"])
+            .current_dir(dir.path())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null());
+        match env_token {
+            Some(t) => cmd.env("IMPACTCAM_TOKEN", t),
+            None => cmd.env_remove("IMPACTCAM_TOKEN"),
+        };
+        let mut child = cmd.spawn().unwrap();
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let addr = line
+            .trim()
+            .strip_prefix("listening on http://")
+            .expect("daemon prints its address")
+            .to_string();
+        Daemon {
+            child,
+            addr,
+            _dir: dir,
+        }
+    }
+
+    fn dir(&self) -> &std::path::Path {
+        self._dir.path()
+    }
+
+    /// (status, body)
+    fn request(&self, method: &str, path: &str, body: &str, auth: Option<&str>) -> (u16, String) {
+        let mut s = TcpStream::connect(&self.addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+        let auth = auth
+            .map(|t| format!("Authorization: Bearer {t}\r\n"))
+            .unwrap_or_default();
+        write!(s, "{method} {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{auth}Content-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}", body.len()).unwrap();
+        let mut out = String::new();
+        s.read_to_string(&mut out).unwrap();
+        let status = out
+            .split_whitespace()
+            .nth(1)
+            .and_then(|c| c.parse().ok())
+            .unwrap_or(0);
+        let body = out
+            .split_once("\r\n\r\n")
+            .map(|(_, b)| b.to_string())
+            .unwrap_or_default();
+        (status, body)
+    }
+
+    fn json(&self, path: &str) -> serde_json::Value {
+        let (code, body) = self.request("GET", path, "", None);
+        assert_eq!(code, 200, "{path}: {body}");
+        serde_json::from_str(&body).unwrap()
+    }
+
+    fn wait_done(&self, id: &str) -> serde_json::Value {
+        let t0 = Instant::now();
+        loop {
+            let v = self.json(&format!("/api/experiments/{id}"));
+            if v["status"] != "running" {
+                return v;
+            }
+            assert!(
+                t0.elapsed() < Duration::from_secs(60),
+                "experiment {id} did not finish"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+}
+
+impl Drop for Daemon {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+#[test]
+fn the_api_runs_one_experiment_at_a_time_and_reports_it() {
+    let d = Daemon::start(None, "");
+    let (code, page) = d.request("GET", "/", "", None);
+    assert_eq!(code, 200);
+    assert!(page.contains("id=\"run\"") && page.contains("EventSource"));
+    let (code, body) = d.request("POST", "/api/experiments", r#"{"notes": "first"}"#, None);
+    assert_eq!(code, 202, "{body}");
+    let id = serde_json::from_str::<serde_json::Value>(&body).unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let (code, body) = d.request("POST", "/api/experiments", "", None);
+    assert_eq!(
+        code, 409,
+        "a second experiment must be refused, not queued: {body}"
+    );
+    assert_eq!(d.json("/api/status")["running"], id.as_str());
+    let done = d.wait_done(&id);
+    assert_eq!(done["status"], "done", "{done}");
+    let e = done["report"]["e"]["value"].as_f64().unwrap();
+    assert!((e - 0.9).abs() < 0.02, "e {e}");
+    assert_eq!(
+        d.json("/api/experiments")["experiments"][0]["notes"],
+        "first"
+    );
+    let (code, svg) = d.request(
+        "GET",
+        &format!("/api/experiments/{id}/trajectory.svg"),
+        "",
+        None,
+    );
+    assert!(code == 200 && svg.contains("<svg"));
+    // The progress stream replays what happened, through to the end.
+    let mut s = TcpStream::connect(&d.addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    write!(
+        s,
+        "GET /api/experiments/{id}/events HTTP/1.1\r\nHost: x\r\n\r\n"
+    )
+    .unwrap();
+    let mut seen = String::new();
+    let mut buf = [0u8; 4096];
+    while !seen.contains("\"stage\":\"done\"") {
+        let n = s.read(&mut buf).unwrap();
+        assert!(n > 0, "stream ended early: {seen}");
+        seen.push_str(&String::from_utf8_lossy(&buf[..n]));
+    }
+    for stage in ["armed", "fired", "recording", "analysing", "done"] {
+        assert!(
+            seen.contains(&format!("\"stage\":\"{stage}\"")),
+            "{stage} missing from {seen}"
+        );
+    }
+    // A session was written where the config says.
+    assert!(d.dir().join("sessions").read_dir().unwrap().count() == 1);
+}
+
+#[test]
+fn bad_requests_get_a_400_that_names_the_problem() {
+    let d = Daemon::start(None, "");
+    let (code, body) = d.request("POST", "/api/experiments", r#"{"nots": "x"}"#, None);
+    assert_eq!(code, 400);
+    assert!(body.contains("nots"), "{body}");
+    let (code, body) = d.request("POST", "/api/experiments", r#"{"frames": 1}"#, None);
+    assert_eq!(code, 400);
+    assert!(body.contains("recording.frames"), "{body}");
+    let big = format!("{{\"notes\": \"{}\"}}", "x".repeat(64 * 1024));
+    let (code, _) = d.request("POST", "/api/experiments", &big, None);
+    assert_eq!(code, 413);
+    let (code, _) = d.request("GET", "/api/experiments/9999", "", None);
+    assert_eq!(code, 404);
+}
+
+#[test]
+fn a_token_guards_firing_and_is_required_off_loopback() {
+    let d = Daemon::start(Some("0123456789abcdef-token"), "");
+    let (code, _) = d.request("POST", "/api/experiments", "", None);
+    assert_eq!(code, 401);
+    let (code, _) = d.request(
+        "POST",
+        "/api/experiments",
+        "",
+        Some("wrong-token-wrong-token"),
+    );
+    assert_eq!(code, 401);
+    let (code, body) = d.request(
+        "POST",
+        "/api/experiments",
+        "",
+        Some("0123456789abcdef-token"),
+    );
+    assert_eq!(code, 202, "{body}");
+    // Refused before binding anything.
+    let out = Command::new(env!("CARGO_BIN_EXE_impactcam"))
+        .args(["serve", "--listen", "0.0.0.0:0"])
+        .env_remove("IMPACTCAM_TOKEN")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("token"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn sigterm_aborts_the_running_experiment_safely_and_exits_0() {
+    let mut d = Daemon::start(None, "[recording]\nframes = 5000\n");
+    let (code, body) = d.request("POST", "/api/experiments", "", None);
+    assert_eq!(code, 202, "{body}");
+    // Let it fire and record a while.
+    let t0 = Instant::now();
+    while d.json("/api/experiments/0001")["session"].is_null() {
+        assert!(t0.elapsed() < Duration::from_secs(10));
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(Command::new("kill")
+        .args(["-TERM", &d.child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = d.child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(15),
+            "daemon did not exit after SIGTERM"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert_eq!(status.code(), Some(0));
+    let session = d
+        .dir()
+        .join("sessions")
+        .read_dir()
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(session.join("session.json")).unwrap())
+            .unwrap();
+    assert_eq!(m["status"], "incomplete", "{m}");
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(session.join("truth.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        truth["relay_events"].as_array().unwrap().last().unwrap()["closed"],
+        false
+    );
+}
