@@ -133,6 +133,14 @@ enum BenchWhat {
         #[arg(long, default_value = ".")]
         dir: PathBuf,
     },
+    /// N experiments back to back through the daemon; memory and file descriptors compared.
+    Soak {
+        #[arg(long, default_value_t = 100)]
+        experiments: usize,
+        /// Where the daemon writes its sessions (a temporary directory inside it).
+        #[arg(long, default_value = ".")]
+        dir: PathBuf,
+    },
     /// Relay pulse latency and jitter over a serial line, against emulated modules.
     Relay {
         #[arg(long, default_value_t = 50)]
@@ -494,6 +502,13 @@ fn real_main(cli: Cli) -> Result<i32> {
                     bail!("--frames: {frames} is too few, expected at least 10");
                 }
                 print!("{}", impactcam::bench::capture(frames, &dir)?);
+                Ok(0)
+            }
+            BenchWhat::Soak { experiments, dir } => {
+                let tmp = dir.join(format!(".impactcam-soak-{}", std::process::id()));
+                let result = impactcam::bench::soak::soak(experiments, &tmp);
+                let _ = std::fs::remove_dir_all(&tmp);
+                print!("{}", result.map_err(anyhow::Error::msg)?);
                 Ok(0)
             }
             BenchWhat::Relay { pulses, pulse_ms } => {

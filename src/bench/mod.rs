@@ -4,5 +4,6 @@
 pub mod accuracy;
 pub mod capture;
 pub mod relay;
+pub mod soak;
 
 pub use capture::capture;

@@ -50,7 +50,8 @@ pub struct Overrides {
 struct Record {
     status: &'static str,
     error: Option<String>,
-    report: Option<Value>,
+    /// The report stays on disk (report.json in the session) and is read when asked for: a
+    /// daemon that runs for months must not hold every report in memory.
     session: Option<String>,
     notes: Option<String>,
     events: Vec<Value>,
@@ -254,7 +255,6 @@ async fn start(State(state): State<Shared>, headers: HeaderMap, body: Bytes) -> 
         Record {
             status: "running",
             error: None,
-            report: None,
             session: None,
             notes: overrides.notes,
             events: Vec::new(),
@@ -277,9 +277,9 @@ async fn start(State(state): State<Shared>, headers: HeaderMap, body: Bytes) -> 
             let _ = st.events.send((run_id.clone(), v));
         };
         let result = experiment::run(&cfg, st.abort.clone(), &mut on_event);
-        let (status, err, report) = match result {
-            Ok((_, report)) => ("done", None, serde_json::to_value(&report).ok()),
-            Err(e) => ("failed", Some(e.to_string()), None),
+        let (status, err) = match result {
+            Ok(_) => ("done", None),
+            Err(e) => ("failed", Some(e.to_string())),
         };
         if let Some(e) = &err {
             *lock(&st.last_error) = Some(e.clone());
@@ -288,7 +288,6 @@ async fn start(State(state): State<Shared>, headers: HeaderMap, body: Bytes) -> 
         if let Some(r) = lock(&st.experiments).get_mut(&run_id) {
             r.status = status;
             r.error = err;
-            r.report = report;
             r.events.push(final_event.clone());
         }
         let _ = st.events.send((run_id, final_event));
@@ -297,22 +296,39 @@ async fn start(State(state): State<Shared>, headers: HeaderMap, body: Bytes) -> 
     (StatusCode::ACCEPTED, Json(json!({ "id": id }))).into_response()
 }
 
-fn record_json(id: &str, r: &Record, with_report: bool) -> Value {
+fn record_json(id: &str, r: &Record) -> Value {
     let mut v = json!({"id": id, "status": r.status, "session": r.session, "notes": r.notes});
     if let Some(e) = &r.error {
         v["error"] = json!(e);
     }
-    if with_report {
-        if let Some(rep) = &r.report {
-            v["report"] = rep.clone();
-        }
-    }
     v
 }
 
+/// The report of a finished experiment, from its session on disk.
+fn report_of(state: &AppState, r: &Record) -> Option<Value> {
+    if r.status != "done" {
+        return None;
+    }
+    let path = state
+        .cfg
+        .recording
+        .dir
+        .join(r.session.as_ref()?)
+        .join("report.json");
+    serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()
+}
+
 async fn one(State(state): State<Shared>, Path(id): Path<String>) -> Response {
-    match lock(&state.experiments).get(&id) {
-        Some(r) => Json(record_json(&id, r, true)).into_response(),
+    let found = lock(&state.experiments)
+        .get(&id)
+        .map(|r| (record_json(&id, r), report_of(&state, r)));
+    match found {
+        Some((mut v, report)) => {
+            if let Some(rep) = report {
+                v["report"] = rep;
+            }
+            Json(v).into_response()
+        }
         None => error(StatusCode::NOT_FOUND, format!("no experiment {id}")),
     }
 }
@@ -320,7 +336,7 @@ async fn one(State(state): State<Shared>, Path(id): Path<String>) -> Response {
 async fn list(State(state): State<Shared>) -> Response {
     let all: Vec<Value> = lock(&state.experiments)
         .iter()
-        .map(|(id, r)| record_json(id, r, false))
+        .map(|(id, r)| record_json(id, r))
         .collect();
     Json(json!({ "experiments": all })).into_response()
 }
@@ -365,7 +381,7 @@ async fn events_sse(State(state): State<Shared>, Path(id): Path<String>) -> Resp
 async fn trajectory(State(state): State<Shared>, Path(id): Path<String>) -> Response {
     let report = lock(&state.experiments)
         .get(&id)
-        .and_then(|r| r.report.clone());
+        .and_then(|r| report_of(&state, r));
     let Some(report) =
         report.and_then(|v| serde_json::from_value::<crate::analysis::report::Report>(v).ok())
     else {
