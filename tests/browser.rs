@@ -169,5 +169,5 @@ fn clicking_run_in_a_browser_shows_the_result() {
     );
     let past = wait_for(&mut eval, "document.getElementById('past').textContent.includes('from the browser') ? document.getElementById('past').textContent : ''", 10);
     assert!(past.as_str().unwrap().contains("done"), "{past}");
-    assert_eq!(eval("document.getElementById('traj').complete && document.getElementById('traj').naturalWidth > 0"), true, "trajectory plot loaded");
+    wait_for(&mut eval, "document.getElementById('traj').complete && document.getElementById('traj').naturalWidth > 0", 10);
 }

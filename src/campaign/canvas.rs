@@ -94,6 +94,19 @@ impl Raster {
         }
     }
 
+    /// A raster showing a greyscale camera frame (8-bit scale values).
+    pub fn from_grey(w: usize, h: usize, grey: &[f32]) -> Raster {
+        let px = grey.iter().flat_map(|&g| {
+            let v = g.round().clamp(0.0, 255.0) as u8;
+            [v, v, v]
+        });
+        Raster {
+            w,
+            h,
+            px: px.collect(),
+        }
+    }
+
     fn blend(&mut self, x: i64, y: i64, c: Rgb, alpha: f64) {
         if x < 0 || y < 0 || x as usize >= self.w || y as usize >= self.h || alpha <= 0.0 {
             return;

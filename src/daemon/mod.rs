@@ -135,6 +135,7 @@ pub fn serve(
             .route("/api/experiments/{id}", get(one))
             .route("/api/experiments/{id}/events", get(events_sse))
             .route("/api/experiments/{id}/trajectory.svg", get(trajectory))
+            .route("/api/experiments/{id}/impact.png", get(impact_frame))
             .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
             .with_state(state.clone());
         tracing::info!(%bound, "listening");
@@ -393,4 +394,61 @@ async fn trajectory(State(state): State<Shared>, Path(id): Path<String>) -> Resp
     let (svg, _) =
         crate::campaign::plot::trajectory_plot(&report, state.cfg.analysis.gravity_mm_s2);
     ([("content-type", "image/svg+xml")], svg).into_response()
+}
+
+/// The recorded frame nearest the impact, with the detected circles drawn (a blue, b red).
+async fn impact_frame(State(state): State<Shared>, Path(id): Path<String>) -> Response {
+    let found = lock(&state.experiments)
+        .get(&id)
+        .and_then(|r| Some((report_of(&state, r)?, r.session.clone()?)));
+    let Some((report, session)) = found else {
+        return error(
+            StatusCode::NOT_FOUND,
+            format!("experiment {id} has no report"),
+        );
+    };
+    let dir = state.cfg.recording.dir.join(session);
+    let png = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
+        use crate::campaign::canvas::{Canvas, Raster};
+        let report: crate::analysis::report::Report =
+            serde_json::from_value(report).map_err(|e| e.to_string())?;
+        let mut reader = crate::session::SessionReader::open(&dir).map_err(|e| e.to_string())?;
+        let k = report.impact.frame as usize;
+        let mut raw = Vec::new();
+        reader.read_frame(k, &mut raw).map_err(|e| e.to_string())?;
+        let mut img = crate::analysis::image::GreyImage::new();
+        img.load(
+            &raw,
+            reader.width as usize,
+            reader.height as usize,
+            reader.bytes_per_pixel,
+        );
+        let mut r = Raster::from_grey(img.width, img.height, &img.data);
+        // Circles from the frames around the impact, so both spheres show even when merged.
+        for t in report
+            .tracks
+            .iter()
+            .filter(|t| (t.frame as i64 - k as i64).abs() <= 3)
+        {
+            for (track, colour) in [(&t.a, [31u8, 119, 180]), (&t.b, [214, 39, 40])] {
+                for v in track.iter().flat_map(|s| [&s.direct, &s.mirror]).flatten() {
+                    if t.frame as usize == k || v.diameter_px.is_finite() {
+                        r.circle(
+                            (v.centre_px[0] + 0.5, v.centre_px[1] + 0.5),
+                            v.diameter_px / 2.0,
+                            colour,
+                            false,
+                        );
+                    }
+                }
+            }
+        }
+        r.png().map_err(|e| e.to_string())
+    })
+    .await;
+    match png {
+        Ok(Ok(bytes)) => ([("content-type", "image/png")], bytes).into_response(),
+        Ok(Err(e)) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
+        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
+    }
 }
