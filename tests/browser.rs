@@ -167,7 +167,8 @@ fn clicking_run_in_a_browser_shows_the_result() {
         eval("document.getElementById('status').textContent"),
         "done"
     );
-    let past = wait_for(&mut eval, "document.getElementById('past').textContent.includes('from the browser') ? document.getElementById('past').textContent : ''", 10);
-    assert!(past.as_str().unwrap().contains("done"), "{past}");
+    // The table is refreshed when the run starts and again when it ends: wait for the latter.
+    let past = wait_for(&mut eval, "(t => t.includes('from the browser') && t.includes('done') ? t : '')(document.getElementById('past').textContent)", 10);
+    assert!(past.as_str().unwrap().contains("0001done"), "{past}");
     wait_for(&mut eval, "document.getElementById('traj').complete && document.getElementById('traj').naturalWidth > 0", 10);
 }
