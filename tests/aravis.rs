@@ -3,6 +3,8 @@
 //! and USB3 interfaces are disabled for `Fake…` devices, so nothing is sent on the network.
 #![cfg(feature = "aravis")]
 
+mod common;
+
 use std::process::Command;
 
 const CONFIG: &str = r#"
@@ -46,15 +48,8 @@ fn capture_from_the_fake_genicam_camera_records_400_frames_without_drops() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let session = std::fs::read_dir(tmp.path().join("sessions"))
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
-    let m: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(session.join("session.json")).unwrap())
-            .unwrap();
+    let session = common::first_session(tmp.path());
+    let m = common::read_json(&session.join("session.json"));
     assert_eq!(m["status"], "complete");
     assert_eq!(m["frames_recorded"], 400);
     assert_eq!(m["frames_dropped"], 0);
@@ -112,15 +107,8 @@ fn capture_from_the_fake_gige_camera_on_loopback_in_a_namespace() {
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
-    let session = std::fs::read_dir(tmp.path().join("sessions"))
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
-    let m: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(session.join("session.json")).unwrap())
-            .unwrap();
+    let session = common::first_session(tmp.path());
+    let m = common::read_json(&session.join("session.json"));
     assert_eq!(m["status"], "complete");
     assert_eq!(m["frames_recorded"], 100);
     assert_eq!(m["frames_dropped"], 0);

@@ -1,6 +1,8 @@
 //! The lab daemon over real HTTP on loopback: the API contract, one experiment at a time,
 //! progress events, validation, the token, and shutdown on SIGTERM.
 
+mod common;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::process::{Child, Command, Stdio};
@@ -233,18 +235,8 @@ fn sigterm_aborts_the_running_experiment_safely_and_exits_0() {
         std::thread::sleep(Duration::from_millis(50));
     };
     assert_eq!(status.code(), Some(0));
-    let session = d
-        .dir()
-        .join("sessions")
-        .read_dir()
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
-    let m: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(session.join("session.json")).unwrap())
-            .unwrap();
+    let session = common::first_session(d.dir());
+    let m = common::read_json(&session.join("session.json"));
     assert_eq!(m["status"], "incomplete", "{m}");
     let truth: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(session.join("truth.json")).unwrap())

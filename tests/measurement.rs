@@ -1,6 +1,8 @@
 //! Measurement against the simulator's ground truth: the accuracy goals that hold, the thesis
 //! baseline beaten on the same frames, and what happens when the data cannot give a quantity.
 
+mod common;
+
 use impactcam::bench::accuracy::{self, rms, stats};
 use std::path::Path;
 use std::process::Command;
@@ -120,12 +122,7 @@ fn spheres_that_never_touch_are_no_impact_and_no_report() {
         Some(true),
         "{err}"
     );
-    let session = std::fs::read_dir(tmp.path().join("sessions"))
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
+    let session = common::first_session(tmp.path());
     assert!(!session.join("report.json").exists());
 }
 
