@@ -42,10 +42,12 @@ pub enum Event {
     },
 }
 
-/// The devices of one experiment.
+/// The devices of an experiment: opened once, and kept by a daemon from one experiment to the
+/// next (`record` borrows them).
 pub struct Rig {
     pub lab: Option<Arc<hw_sim::SimLab>>,
-    pub camera: Box<dyn Camera>,
+    /// None once an acquisition thread died with it: the rig must be reopened.
+    pub camera: Option<Box<dyn Camera>>,
     pub trigger: Trigger,
 }
 
@@ -65,48 +67,76 @@ impl Rig {
         let trigger = Trigger::open(cfg, lab.as_ref().map(|l| l.relay_port()))?;
         Ok(Rig {
             lab,
-            camera,
+            camera: Some(camera),
             trigger,
         })
     }
+
+    /// Arm, fire, record; no analysis. In the simulated lab the spheres are first loaded again
+    /// with `cfg`'s experiment keys (`[sim]`), as a person reloads the tubes on a real rig.
+    pub fn record(
+        &mut self,
+        cfg: &Config,
+        abort: Arc<AtomicBool>,
+        on_event: &mut dyn FnMut(Event),
+    ) -> Result<Recording, ExperimentError> {
+        if let Some(lab) = &self.lab {
+            lab.restage(&cfg.sim).map_err(ExperimentError::Sim)?;
+        }
+        Ok(recorder::record(
+            &mut self.camera,
+            &self.trigger,
+            cfg,
+            abort,
+            &mut |p| on_event(Event::Recorder(p)),
+        )?)
+    }
 }
 
-/// Arm, fire, record; no analysis.
+impl ExperimentError {
+    /// Whether the devices may be in a bad state after this error, so that a daemon should
+    /// close and reopen them before the next experiment (a disconnect, a relay that stopped
+    /// answering). Analysis and bad-input errors leave the rig as it was.
+    pub fn rig_suspect(&self) -> bool {
+        match self {
+            ExperimentError::Sim(_)
+            | ExperimentError::Camera(_)
+            | ExperimentError::Trigger(_)
+            | ExperimentError::Incomplete { .. } => true,
+            ExperimentError::Record(RecordError::Session(_)) => false,
+            ExperimentError::Record(RecordError::Interrupted(_)) => false,
+            ExperimentError::Record(_) => true,
+            ExperimentError::Analysis(_) | ExperimentError::Session(_) => false,
+        }
+    }
+}
+
+/// Opens the rig, arms, fires, records; no analysis.
 pub fn capture(
     cfg: &Config,
     abort: Arc<AtomicBool>,
     on_event: &mut dyn FnMut(Event),
 ) -> Result<Recording, ExperimentError> {
-    let rig = Rig::open(cfg)?;
-    capture_with(rig, cfg, abort, on_event)
+    Rig::open(cfg)?.record(cfg, abort, on_event)
 }
 
-pub fn capture_with(
-    rig: Rig,
-    cfg: &Config,
-    abort: Arc<AtomicBool>,
-    on_event: &mut dyn FnMut(Event),
-) -> Result<Recording, ExperimentError> {
-    let Rig {
-        lab,
-        camera,
-        trigger,
-    } = rig;
-    let rec = recorder::record(camera, &trigger, cfg, abort, &mut |p| {
-        on_event(Event::Recorder(p))
-    })?;
-    drop(trigger);
-    drop(lab);
-    Ok(rec)
-}
-
-/// Record and analyse; the report is written into the session.
+/// Opens the rig, records and analyses; the report is written into the session.
 pub fn run(
     cfg: &Config,
     abort: Arc<AtomicBool>,
     on_event: &mut dyn FnMut(Event),
 ) -> Result<(Recording, Report), ExperimentError> {
-    let rec = capture(cfg, abort, on_event)?;
+    run_on(&mut Rig::open(cfg)?, cfg, abort, on_event)
+}
+
+/// Records on an open rig and analyses; the report is written into the session.
+pub fn run_on(
+    rig: &mut Rig,
+    cfg: &Config,
+    abort: Arc<AtomicBool>,
+    on_event: &mut dyn FnMut(Event),
+) -> Result<(Recording, Report), ExperimentError> {
+    let rec = rig.record(cfg, abort, on_event)?;
     if rec.status != Status::Complete {
         return Err(ExperimentError::Incomplete {
             dir: rec.session_dir.clone(),

@@ -19,6 +19,16 @@ use std::sync::Arc;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Log lines on stderr: `human` or `json` (one object per line, for journald or a log
+    /// collector). Default: $IMPACTCAM_LOG_FORMAT, else human.
+    #[arg(long, global = true, value_enum)]
+    log_format: Option<LogFormat>,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum LogFormat {
+    Human,
+    Json,
 }
 
 #[derive(Subcommand)]
@@ -205,11 +215,25 @@ fn progress_printer(status: &mut Status) -> impl FnMut(Event) + '_ {
 }
 
 fn main() {
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .with_target(false)
-        .init();
     let cli = Cli::parse();
+    let format = match cli.log_format {
+        Some(f) => f,
+        None => match std::env::var("IMPACTCAM_LOG_FORMAT").as_deref() {
+            Ok("json") => LogFormat::Json,
+            Ok("human") | Ok("") | Err(_) => LogFormat::Human,
+            Ok(other) => {
+                eprintln!("error: IMPACTCAM_LOG_FORMAT={other:?}: expected \"human\" or \"json\"");
+                std::process::exit(2);
+            }
+        },
+    };
+    let logs = tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_target(false);
+    match format {
+        LogFormat::Human => logs.init(),
+        LogFormat::Json => logs.json().flatten_event(true).init(),
+    }
     match real_main(cli) {
         Ok(code) => std::process::exit(code),
         Err(e) => {

@@ -63,8 +63,18 @@ struct Acquisition {
 }
 
 impl Acquisition {
-    fn start(mut camera: Box<dyn Camera>, queue_frames: usize) -> Result<Acquisition, CameraError> {
-        camera.start()?;
+    /// Takes the camera out of `slot` for the acquisition thread; `finish` puts it back.
+    fn start(
+        slot: &mut Option<Box<dyn Camera>>,
+        queue_frames: usize,
+    ) -> Result<Acquisition, CameraError> {
+        let mut camera = slot.take().ok_or_else(|| {
+            CameraError::Failed("the camera was lost by an earlier failure; reopen it".into())
+        })?;
+        if let Err(e) = camera.start() {
+            *slot = Some(camera);
+            return Err(e);
+        }
         let (tx, rx) = sync_channel::<Result<Frame, CameraError>>(queue_frames);
         let (recycle, recycled) = std::sync::mpsc::channel::<Vec<u8>>();
         let stop = Arc::new(AtomicBool::new(false));
@@ -93,6 +103,7 @@ impl Acquisition {
                 camera
             })
             .map_err(|e| CameraError::Failed(format!("cannot start acquisition thread: {e}")))?;
+        // (A failed spawn drops the camera with the closure; the rig is then reopened.)
         Ok(Acquisition {
             rx,
             recycle,
@@ -102,12 +113,13 @@ impl Acquisition {
         })
     }
 
-    /// Stops streaming and gives the camera back.
-    fn finish(mut self) -> Option<Box<dyn Camera>> {
+    /// Stops streaming and puts the camera back in `slot` (it stays out only if the
+    /// acquisition thread panicked, and then the rig must be reopened).
+    fn finish(mut self, slot: &mut Option<Box<dyn Camera>>) {
         self.stop.store(true, Ordering::Relaxed);
         // Unblock a sender waiting on a full queue.
         while self.rx.try_recv().is_ok() {}
-        self.thread.take().and_then(|t| t.join().ok())
+        *slot = self.thread.take().and_then(|t| t.join().ok());
     }
 }
 
@@ -118,15 +130,22 @@ impl Drop for Acquisition {
 }
 
 /// Arms, fires, records. On success the session is complete; on a camera failure after firing
-/// it is finalised as incomplete (frames kept) and returned with that status.
+/// it is finalised as incomplete (frames kept) and returned with that status. The camera is
+/// borrowed from `camera` for the recording and put back after it, so a daemon keeps it open
+/// from one experiment to the next.
 pub fn record(
-    camera: Box<dyn Camera>,
+    camera: &mut Option<Box<dyn Camera>>,
     trigger: &Trigger,
     cfg: &Config,
     abort: Arc<AtomicBool>,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Recording, RecordError> {
-    let info = camera.info();
+    let info = camera
+        .as_ref()
+        .ok_or_else(|| {
+            CameraError::Failed("the camera was lost by an earlier failure; reopen it".into())
+        })?
+        .info();
     let rec = &cfg.recording;
     let frame_bytes = info.frame_bytes().max(1);
     let queue_frames = ((rec.ram_buffer_mb as usize * 1024 * 1024) / frame_bytes).clamp(8, 1 << 20);
@@ -141,7 +160,7 @@ pub fn record(
     let mut seen = 0u64;
     while seen < 2 || ring.len() < keep {
         if abort.load(Ordering::Relaxed) {
-            acq.finish();
+            acq.finish(camera);
             return Err(RecordError::NotArmed {
                 frames: seen,
                 timeout_ms: rec.arm_timeout_ms,
@@ -160,7 +179,7 @@ pub fn record(
                 }
             }
             Ok(Err(e)) => {
-                acq.finish();
+                acq.finish(camera);
                 return Err(RecordError::NotArmed {
                     frames: seen,
                     timeout_ms: rec.arm_timeout_ms,
@@ -169,7 +188,7 @@ pub fn record(
             }
             Err(RecvTimeoutError::Timeout) if std::time::Instant::now() < arm_deadline => {}
             Err(_) => {
-                acq.finish();
+                acq.finish(camera);
                 return Err(RecordError::NotArmed {
                     frames: seen,
                     timeout_ms: rec.arm_timeout_ms,
@@ -193,7 +212,7 @@ pub fn record(
         Ok(s) => s,
         Err(e) => {
             drop(pulse);
-            acq.finish();
+            acq.finish(camera);
             return Err(e.into());
         }
     };
@@ -275,7 +294,7 @@ pub fn record(
     }
     let pulse_result = pulse.take().map(|p| p.cancel());
     let losses = acq.queue_full_losses.load(Ordering::Relaxed);
-    let camera = acq.finish();
+    acq.finish(camera);
 
     let dropped = count_gaps(&saved);
     {
@@ -288,7 +307,7 @@ pub fn record(
                 .map(|i| i as u64);
         }
     }
-    if let Some(cam) = &camera {
+    if let Some(cam) = camera.as_ref() {
         let pairs: Vec<(u64, u64)> = saved.iter().map(|m| (m.frame_id, m.timestamp_ns)).collect();
         if let Some(truth) = cam.ground_truth(&pairs) {
             let text = serde_json::to_string_pretty(&truth).unwrap_or_default();
@@ -357,6 +376,8 @@ pub fn stream_to_ram(
     for page in ring.chunks_mut(4096) {
         page[0] = 1;
     }
+    let mut camera = Some(camera);
+    let camera = &mut camera;
     let acq = Acquisition::start(camera, queue_frames.max(1))?;
     let mut metas: Vec<FrameMeta> = Vec::with_capacity(frames);
     let start = std::time::Instant::now();
@@ -373,7 +394,7 @@ pub fn stream_to_ram(
                 let _ = acq.recycle.send(f.data);
             }
             Ok(Err(e)) => {
-                acq.finish();
+                acq.finish(camera);
                 return Err(e.into());
             }
             Err(_) => break,
@@ -381,7 +402,7 @@ pub fn stream_to_ram(
     }
     let elapsed = start.elapsed();
     let lost = acq.queue_full_losses.load(Ordering::Relaxed);
-    acq.finish();
+    acq.finish(camera);
     Ok(RamStats {
         frames_received: metas.len() as u64,
         frames_lost_queue: lost,

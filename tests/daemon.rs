@@ -16,13 +16,21 @@ struct Daemon {
 
 impl Daemon {
     fn start(env_token: Option<&str>, config: &str) -> Daemon {
+        Daemon::start_with(env_token, config, &[])
+    }
+
+    /// The daemon's log (stderr) goes to `daemon.log` in its directory.
+    fn start_with(env_token: Option<&str>, config: &str, args: &[&str]) -> Daemon {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(dir.path().join("c.toml"), config).unwrap();
+        let log = std::fs::File::create(dir.path().join("daemon.log")).unwrap();
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_impactcam"));
         cmd.args(["serve", "--config", "c.toml", "--listen", "127.0.0.1:0"])
+            .args(args)
             .current_dir(dir.path())
+            .env_remove("IMPACTCAM_LOG_FORMAT")
             .stdout(Stdio::piped())
-            .stderr(Stdio::null());
+            .stderr(log);
         match env_token {
             Some(t) => cmd.env("IMPACTCAM_TOKEN", t),
             None => cmd.env_remove("IMPACTCAM_TOKEN"),
@@ -68,6 +76,15 @@ impl Daemon {
             .map(|(_, b)| b.to_string())
             .unwrap_or_default();
         (status, body)
+    }
+
+    fn start_experiment(&self, body: &str) -> String {
+        let (code, body) = self.request("POST", "/api/experiments", body, None);
+        assert_eq!(code, 202, "{body}");
+        serde_json::from_str::<serde_json::Value>(&body).unwrap()["id"]
+            .as_str()
+            .unwrap()
+            .to_string()
     }
 
     fn json(&self, path: &str) -> serde_json::Value {
@@ -153,8 +170,113 @@ fn the_api_runs_one_experiment_at_a_time_and_reports_it() {
             "{stage} missing from {seen}"
         );
     }
-    // A session was written where the config says.
+    // A session was written where the config says, and the status says how much room is left
+    // for the next ones.
     assert!(d.dir().join("sessions").read_dir().unwrap().count() == 1);
+    let status = d.json("/api/status");
+    let free = status["disk"]["free_bytes"].as_u64().expect("free_bytes");
+    let total = status["disk"]["total_bytes"].as_u64().expect("total_bytes");
+    assert!(free > 0 && free <= total, "{status}");
+}
+
+#[test]
+fn the_rig_is_opened_once_and_kept_between_experiments() {
+    let d = Daemon::start(None, "");
+    let first = d.start_experiment("");
+    assert_eq!(d.wait_done(&first)["status"], "done");
+    let second = d.start_experiment(r#"{"tube_angle_deg": 40}"#);
+    assert_eq!(d.wait_done(&second)["status"], "done");
+    let status = d.json("/api/status");
+    assert_eq!(status["camera"]["state"], "open", "{status}");
+    assert_eq!(status["camera"]["opened_times"], 1, "{status}");
+    // The kept simulated lab was loaded again for the second firing, with its tube angle.
+    let mut truths: Vec<serde_json::Value> = std::fs::read_dir(d.dir().join("sessions"))
+        .unwrap()
+        .map(|e| common::read_json(&e.unwrap().path().join("truth.json")))
+        .collect();
+    truths.sort_by(|a, b| {
+        a["release_time_s"]
+            .as_f64()
+            .partial_cmp(&b["release_time_s"].as_f64())
+            .unwrap()
+    });
+    assert_eq!(truths.len(), 2);
+    for t in &truths {
+        let closings = t["relay_events"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e["closed"] == true)
+            .count();
+        assert_eq!(
+            closings, 1,
+            "each session's truth has its own firing: {}",
+            t["relay_events"]
+        );
+    }
+    let speed = |t: &serde_json::Value| {
+        let v = &t["spheres"]["a"]["pre"]["velocity_mm_s"];
+        (0..3)
+            .map(|i| v[i].as_f64().unwrap().powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    assert!(
+        (speed(&truths[0]) - speed(&truths[1])).abs() > 1.0,
+        "a steeper tube gives a faster sphere: {} vs {} mm/s",
+        speed(&truths[0]),
+        speed(&truths[1])
+    );
+}
+
+#[test]
+fn a_disconnected_camera_is_reopened_for_the_next_experiment() {
+    // The simulated camera drops off the bus after 320 frames: the first experiment (400
+    // frames) loses it; a camera kept open would fail every later one.
+    let d = Daemon::start(None, "[sim]\ndisconnect_after_frames = 320\n");
+    let first = d.start_experiment(r#"{"frames": 400}"#);
+    let failed = d.wait_done(&first);
+    assert_eq!(failed["status"], "failed", "{failed}");
+    let status = d.json("/api/status");
+    assert_eq!(status["camera"]["state"], "closed", "{status}");
+    assert!(
+        status["camera"]["error"]
+            .as_str()
+            .unwrap()
+            .contains("disconnected"),
+        "{status}"
+    );
+    let second = d.start_experiment("");
+    let done = d.wait_done(&second);
+    assert_eq!(done["status"], "done", "{done}");
+    let status = d.json("/api/status");
+    assert_eq!(status["camera"]["state"], "open", "{status}");
+    assert_eq!(status["camera"]["opened_times"], 2, "{status}");
+}
+
+#[test]
+fn logs_can_be_json_lines_with_the_experiment_in_them() {
+    let mut d = Daemon::start_with(None, "", &["--log-format", "json"]);
+    let id = d.start_experiment(r#"{"notes": "log me"}"#);
+    assert_eq!(d.wait_done(&id)["status"], "done");
+    let _ = Command::new("kill")
+        .args(["-TERM", &d.child.id().to_string()])
+        .status();
+    let _ = d.child.wait();
+    let log = std::fs::read_to_string(d.dir().join("daemon.log")).unwrap();
+    let lines: Vec<serde_json::Value> = log
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not JSON ({e}): {l}")))
+        .collect();
+    let done = lines
+        .iter()
+        .find(|l| l["message"] == "experiment done")
+        .unwrap_or_else(|| panic!("no 'experiment done' in {log}"));
+    assert_eq!(done["id"], id.as_str());
+    assert_eq!(done["level"], "INFO");
+    assert!((done["e"].as_f64().unwrap() - 0.9).abs() < 0.02, "{done}");
+    assert!(done["session"].as_str().unwrap().contains("sessions"));
+    assert!(lines.iter().any(|l| l["message"] == "rig closed"), "{log}");
 }
 
 #[test]

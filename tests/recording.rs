@@ -30,10 +30,10 @@ fn relay_is_released_when_the_session_cannot_be_written() {
     // recording.dir is a file: creating the session fails after the relay has closed.
     std::fs::write(tmp.path().join("sessions"), b"not a directory").unwrap();
     let cfg = config(tmp.path(), "[trigger]\nrelay_pulse_ms = 400.0\n");
-    let rig = Rig::open(&cfg).unwrap();
+    let mut rig = Rig::open(&cfg).unwrap();
     let lab = rig.lab.clone().unwrap();
     let r = recorder::record(
-        rig.camera,
+        &mut rig.camera,
         &rig.trigger,
         &cfg,
         Arc::new(AtomicBool::new(false)),
@@ -51,10 +51,10 @@ fn relay_is_released_when_the_session_cannot_be_written() {
 fn camera_disconnect_ends_the_recording_cleanly_with_frames_kept() {
     let tmp = tempfile::tempdir().unwrap();
     let cfg = config(tmp.path(), "[sim]\ndisconnect_after_frames = 100\n");
-    let rig = Rig::open(&cfg).unwrap();
+    let mut rig = Rig::open(&cfg).unwrap();
     let lab = rig.lab.clone().unwrap();
     let rec = recorder::record(
-        rig.camera,
+        &mut rig.camera,
         &rig.trigger,
         &cfg,
         Arc::new(AtomicBool::new(false)),
@@ -83,9 +83,9 @@ fn camera_disconnect_ends_the_recording_cleanly_with_frames_kept() {
 fn dropped_frames_are_counted_from_frame_ids() {
     let tmp = tempfile::tempdir().unwrap();
     let cfg = config(tmp.path(), "[sim]\ndrop_frame_ids = [60, 61, 150]\n");
-    let rig = Rig::open(&cfg).unwrap();
+    let mut rig = Rig::open(&cfg).unwrap();
     let rec = recorder::record(
-        rig.camera,
+        &mut rig.camera,
         &rig.trigger,
         &cfg,
         Arc::new(AtomicBool::new(false)),
@@ -134,7 +134,7 @@ fn firing_is_refused_unless_frames_flow() {
     let rig = Rig::open(&cfg).unwrap();
     let lab = rig.lab.clone().unwrap();
     let r = recorder::record(
-        Box::new(DeadCamera),
+        &mut Some(Box::new(DeadCamera) as Box<dyn impactcam::camera::Camera>),
         &rig.trigger,
         &cfg,
         Arc::new(AtomicBool::new(false)),
@@ -163,7 +163,7 @@ fn no_drops_in_real_time_into_ram() {
         cfg.camera.frame_rate_hz = fps;
         let rig = Rig::open(&cfg).unwrap();
         let queue = cfg.recording.ram_buffer_mb as usize * 1024 * 1024 / (w * h) as usize;
-        let stats = recorder::stream_to_ram(rig.camera, frames, queue).unwrap();
+        let stats = recorder::stream_to_ram(rig.camera.unwrap(), frames, queue).unwrap();
         assert_eq!(stats.frames_received, frames as u64);
         assert_eq!(stats.frames_lost_queue, 0, "{w}×{h}@{fps}");
         assert_eq!(stats.frames_missing_ids, 0, "{w}×{h}@{fps}");

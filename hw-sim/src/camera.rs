@@ -93,10 +93,13 @@ impl SimCamera {
                 continue;
             }
             let release = self.lab.release_time_s();
-            let lab = self.lab.clone();
+            let stage = self.lab.stage();
             let mut data = buf;
-            self.renderer
-                .render(t, &move |tt| lab.bodies_at(tt, release), &mut data);
+            self.renderer.render(
+                t,
+                &move |tt| SimLab::bodies_in(&stage.scenario, tt, release),
+                &mut data,
+            );
             self.delivered += 1;
             return Ok(SimFrame {
                 frame_id,

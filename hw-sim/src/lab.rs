@@ -10,7 +10,7 @@ use crate::scenario::Scenario;
 use crate::V3;
 use serde_json::{json, Value};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, RwLock};
 use std::time::Instant;
 
 /// Seconds since the lab started (real time), or the time of the frame being rendered
@@ -39,10 +39,19 @@ impl LabClock {
     }
 }
 
+/// What is loaded in the tubes now: the scenario, and the lab time from which a relay closing
+/// releases it (closings before belong to earlier experiments).
+pub struct Stage {
+    pub scenario: Scenario,
+    pub solenoid_delay_ms: f64,
+    pub staged_at_s: f64,
+}
+
 pub struct SimLab {
+    /// The lab as opened: noise, drops, disconnects and pace stay as they were at opening.
     pub cfg: LabConfig,
     pub scene: Scene,
-    pub scenario: Scenario,
+    stage: RwLock<Arc<Stage>>,
     clock: Arc<LabClock>,
     log: Arc<Mutex<RelayLog>>,
     relay: SimRelay,
@@ -65,14 +74,38 @@ impl SimLab {
         let log = Arc::new(Mutex::new(RelayLog::default()));
         let relay = SimRelay::spawn(clock.clone(), log.clone())
             .map_err(|e| format!("sim relay: cannot create a pseudo-terminal: {e}"))?;
+        let stage = RwLock::new(Arc::new(Stage {
+            scenario,
+            solenoid_delay_ms: cfg.solenoid_delay_ms,
+            staged_at_s: 0.0,
+        }));
         Ok(Arc::new(SimLab {
             cfg,
             scene,
-            scenario,
+            stage,
             clock,
             log,
             relay,
         }))
+    }
+
+    /// Loads the spheres again for the next experiment, as a person does between two firings on
+    /// a real rig: a new scenario from `cfg`'s experiment keys (tube angle, material, offset…),
+    /// released by the next relay closing. Noise, drops and pace stay as opened.
+    pub fn restage(&self, cfg: &LabConfig) -> Result<(), String> {
+        let scenario = Scenario::new(cfg, &self.scene.spheres)?;
+        let stage = Arc::new(Stage {
+            scenario,
+            solenoid_delay_ms: cfg.solenoid_delay_ms,
+            staged_at_s: self.clock.now_s(),
+        });
+        *self.stage.write().unwrap_or_else(|p| p.into_inner()) = stage;
+        Ok(())
+    }
+
+    /// The experiment loaded now.
+    pub fn stage(&self) -> Arc<Stage> {
+        self.stage.read().unwrap_or_else(|p| p.into_inner()).clone()
     }
 
     /// Serial device path of the simulated relay module.
@@ -84,10 +117,16 @@ impl SimLab {
         &self.clock
     }
 
+    /// Relay events since the spheres were last loaded, after the last one before (the state
+    /// the relay was in when they were loaded).
     pub fn relay_events(&self) -> Vec<RelayEvent> {
+        let since = self.stage().staged_at_s;
         self.log
             .lock()
-            .map(|l| l.events.clone())
+            .map(|l| {
+                let after = l.events.partition_point(|e| e.time_s < since);
+                l.events[after.saturating_sub(1)..].to_vec()
+            })
             .unwrap_or_default()
     }
 
@@ -97,29 +136,35 @@ impl SimLab {
 
     /// Whether the relay is closed now, as the module sees it.
     pub fn relay_closed(&self) -> bool {
-        self.relay_events().last().is_some_and(|e| e.closed)
+        self.log
+            .lock()
+            .map(|l| l.events.last().is_some_and(|e| e.closed))
+            .unwrap_or(false)
     }
 
     /// When the solenoids let go, on the lab clock: the first relay closing plus the solenoid
     /// delay. None while the relay has never closed.
     pub fn release_time_s(&self) -> Option<f64> {
+        let stage = self.stage();
         self.relay_events()
             .iter()
-            .find(|e| e.closed)
-            .map(|e| e.time_s + self.cfg.solenoid_delay_ms / 1000.0)
+            .find(|e| e.closed && e.time_s >= stage.staged_at_s)
+            .map(|e| e.time_s + stage.solenoid_delay_ms / 1000.0)
     }
 
     /// Both spheres and their marker positions (world, mm) at lab time t.
     pub fn bodies_at(&self, t: f64, release: Option<f64>) -> ([Body; 2], [Vec<V3>; 2]) {
+        Self::bodies_in(&self.stage().scenario, t, release)
+    }
+
+    /// As `bodies_at`, for a stage already in hand (the renderer asks many times per frame).
+    pub fn bodies_in(sc: &Scenario, t: f64, release: Option<f64>) -> ([Body; 2], [Vec<V3>; 2]) {
         let tau = match release {
             Some(r) => t - r,
             None => -1.0,
         };
-        let b = self.scenario.state_at(tau);
-        let m = [
-            self.scenario.marker_positions(0, &b[0]),
-            self.scenario.marker_positions(1, &b[1]),
-        ];
+        let b = sc.state_at(tau);
+        let m = [sc.marker_positions(0, &b[0]), sc.marker_positions(1, &b[1])];
         (b, m)
     }
 
@@ -130,7 +175,8 @@ impl SimLab {
     /// Ground truth for the given frames (frame id, device timestamp in ns), as JSON.
     pub fn truth(&self, frames: &[(u64, u64)]) -> Value {
         let release = self.release_time_s();
-        let sc = &self.scenario;
+        let stage = self.stage();
+        let sc = &stage.scenario;
         let impact_time = release
             .map(|r| r + sc.impact_tau_s)
             .filter(|t| t.is_finite());
@@ -139,7 +185,7 @@ impl SimLab {
             .iter()
             .map(|&(id, ts)| {
                 let t = ts as f64 * 1e-9;
-                let (bodies, markers) = self.bodies_at(t, release);
+                let (bodies, markers) = Self::bodies_in(sc, t, release);
                 let spheres: Vec<Value> = (0..2)
                     .map(|i| {
                         let views: serde_json::Map<String, Value> = self

@@ -9,7 +9,6 @@ use crate::analysis::rotation::RotationMethod;
 use crate::analysis::{self, spin, thesis, SessionSource};
 use crate::config::{Config, ViewGeometry};
 use crate::experiment::Rig;
-use crate::recorder;
 use crate::session::SessionReader;
 use nalgebra::{Rotation3, Vector3};
 use serde_json::Value;
@@ -158,16 +157,12 @@ const PHASES: [(&str, &str); 4] = [("a", "pre"), ("b", "pre"), ("a", "post"), ("
 pub fn run_case(c: &Case, dir: &Path) -> CaseResult {
     let mut out = CaseResult::default();
     let cfg = case_config(c, dir);
-    let recorded = Rig::open(&cfg).map_err(|e| e.to_string()).and_then(|rig| {
-        recorder::record(
-            rig.camera,
-            &rig.trigger,
-            &cfg,
-            Arc::new(AtomicBool::new(false)),
-            &mut |_| {},
-        )
+    let recorded = Rig::open(&cfg)
         .map_err(|e| e.to_string())
-    });
+        .and_then(|mut rig| {
+            rig.record(&cfg, Arc::new(AtomicBool::new(false)), &mut |_| {})
+                .map_err(|e| e.to_string())
+        });
     let rec = match recorded {
         Ok(r) => r,
         Err(e) => {

@@ -8,8 +8,8 @@
 
 use crate::camera::{self, Camera};
 use crate::config::Config;
-use crate::experiment::Rig;
-use crate::recorder::{self, stream_to_ram, Progress};
+use crate::experiment::{Event, Rig};
+use crate::recorder::{stream_to_ram, Progress};
 use std::fmt::Write as _;
 use std::io::Write;
 use std::path::Path;
@@ -101,21 +101,16 @@ fn capture_in(frames: usize, tmp: &Path) -> Result<String, BenchError> {
         let mut cfg = free.clone();
         cfg.recording.frames = frames as u32;
         cfg.recording.pre_trigger_frames = 1;
-        let rig = Rig::open(&cfg).map_err(fail)?;
+        let mut rig = Rig::open(&cfg).map_err(fail)?;
         let mut fired_at = None;
         let mut finished_at = None;
-        let rec = recorder::record(
-            rig.camera,
-            &rig.trigger,
-            &cfg,
-            Arc::new(AtomicBool::new(false)),
-            &mut |p| match p {
-                Progress::Fired { .. } => fired_at = Some(Instant::now()),
-                Progress::Finished { .. } => finished_at = Some(Instant::now()),
+        let rec = rig
+            .record(&cfg, Arc::new(AtomicBool::new(false)), &mut |ev| match ev {
+                Event::Recorder(Progress::Fired { .. }) => fired_at = Some(Instant::now()),
+                Event::Recorder(Progress::Finished { .. }) => finished_at = Some(Instant::now()),
                 _ => {}
-            },
-        )
-        .map_err(fail)?;
+            })
+            .map_err(fail)?;
         let disk_time = match (fired_at, finished_at) {
             (Some(a), Some(b)) => b - a,
             _ => return Err(fail("recorder did not report firing and finishing")),

@@ -3,10 +3,13 @@
 //! a queue that fires later), progress events (server-sent events), the bearer token off
 //! loopback, and shutdown on SIGTERM / Ctrl-C (the running experiment is aborted through the
 //! same flag as Ctrl-C on the command line, so the relay is released and the session kept).
-//! Experiments run on blocking threads through `experiment::run`; the daemon touches no device.
+//! The rig (camera and relay) is opened once at start and kept from one experiment to the next;
+//! after an error that may have left a device in a bad state (a disconnect, a relay that stopped
+//! answering) it is closed, and opened again before the next experiment. Experiments run on
+//! blocking threads through `experiment::run_on`; the daemon itself never drives a device.
 
 use crate::config::Config;
-use crate::experiment::{self, Event as ExpEvent};
+use crate::experiment::{self, Event as ExpEvent, ExperimentError, Rig};
 use crate::recorder::Progress;
 use axum::body::Bytes;
 use axum::extract::{DefaultBodyLimit, Path, State};
@@ -57,8 +60,20 @@ struct Record {
     events: Vec<Value>,
 }
 
+/// What `/api/status` says of the devices.
+#[derive(Default)]
+struct RigHealth {
+    open: bool,
+    opened_times: u64,
+    /// Why the rig is closed, when it is.
+    error: Option<String>,
+}
+
 struct AppState {
     cfg: Config,
+    /// The open devices; held by the running experiment for its whole length.
+    rig: Mutex<Option<Rig>>,
+    rig_health: Mutex<RigHealth>,
     token: Option<String>,
     experiments: Mutex<BTreeMap<String, Record>>,
     running: Mutex<Option<(String, tokio::task::JoinHandle<()>)>>,
@@ -120,6 +135,8 @@ pub fn serve(
         let (events, _) = broadcast::channel(1024);
         let state = Arc::new(AppState {
             cfg,
+            rig: Mutex::new(None),
+            rig_health: Mutex::new(RigHealth::default()),
             token,
             experiments: Mutex::new(BTreeMap::new()),
             running: Mutex::new(None),
@@ -138,6 +155,18 @@ pub fn serve(
             .route("/api/experiments/{id}/impact.png", get(impact_frame))
             .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
             .with_state(state.clone());
+        {
+            let st = state.clone();
+            // A rig that cannot be opened now is retried when an experiment is asked for; the
+            // daemon still starts, so the page can say what is wrong.
+            let _ = tokio::task::spawn_blocking(move || {
+                let mut slot = lock(&st.rig);
+                if let Err(e) = ensure_rig(&st, &mut slot) {
+                    tracing::warn!(error = %e, "cannot open the rig; will retry on the next experiment");
+                }
+            })
+            .await;
+        }
         tracing::info!(%bound, "listening");
         ready(bound);
         let shutdown_state = state.clone();
@@ -150,6 +179,9 @@ pub fn serve(
                 if let Some((_, handle)) = running {
                     let _ = handle.await;
                 }
+                // Close the devices now rather than whenever the last reference goes.
+                drop(lock(&shutdown_state.rig).take());
+                tracing::info!("rig closed");
             })
             .await
             .map_err(|e| DaemonError::Listen {
@@ -174,6 +206,34 @@ async fn shutdown_signal() {
     tokio::select! {
         _ = ctrl_c => {},
         _ = term => {},
+    }
+}
+
+/// The open rig, opened (again) first when there is none or it lost its camera.
+fn ensure_rig<'a>(
+    st: &AppState,
+    slot: &'a mut Option<Rig>,
+) -> Result<&'a mut Rig, ExperimentError> {
+    if let Some(rig) = slot.take().filter(|r| r.camera.is_some()) {
+        return Ok(slot.insert(rig));
+    }
+    // The old devices are dropped (closed) before opening: a serial port or a camera cannot be
+    // opened twice.
+    match Rig::open(&st.cfg) {
+        Ok(rig) => {
+            let mut h = lock(&st.rig_health);
+            h.open = true;
+            h.opened_times += 1;
+            h.error = None;
+            tracing::info!(opened_times = h.opened_times, camera = ?st.cfg.camera.backend, trigger = ?st.cfg.trigger.backend, "rig opened");
+            Ok(slot.insert(rig))
+        }
+        Err(e) => {
+            let mut h = lock(&st.rig_health);
+            h.open = false;
+            h.error = Some(e.to_string());
+            Err(e)
+        }
     }
 }
 
@@ -257,11 +317,12 @@ async fn start(State(state): State<Shared>, headers: HeaderMap, body: Bytes) -> 
             status: "running",
             error: None,
             session: None,
-            notes: overrides.notes,
+            notes: overrides.notes.clone(),
             events: Vec::new(),
         },
     );
     state.abort.store(false, Ordering::SeqCst);
+    let notes_for_log = overrides.notes.clone();
     let st = state.clone();
     let run_id = id.clone();
     let handle = tokio::task::spawn_blocking(move || {
@@ -277,10 +338,38 @@ async fn start(State(state): State<Shared>, headers: HeaderMap, body: Bytes) -> 
             }
             let _ = st.events.send((run_id.clone(), v));
         };
-        let result = experiment::run(&cfg, st.abort.clone(), &mut on_event);
+        tracing::info!(id = %run_id, notes = notes_for_log.as_deref().unwrap_or(""), frames = cfg.recording.frames, "experiment started");
+        let result = {
+            let mut slot = lock(&st.rig);
+            let result = ensure_rig(&st, &mut slot)
+                .and_then(|rig| experiment::run_on(rig, &cfg, st.abort.clone(), &mut on_event));
+            if let Err(e) = &result {
+                if e.rig_suspect() && slot.take().is_some() {
+                    let mut h = lock(&st.rig_health);
+                    h.open = false;
+                    h.error = Some(e.to_string());
+                    tracing::warn!(error = %e, "rig closed after this error; it is reopened before the next experiment");
+                }
+            }
+            result
+        };
         let (status, err) = match result {
-            Ok(_) => ("done", None),
-            Err(e) => ("failed", Some(e.to_string())),
+            Ok((rec, report)) => {
+                tracing::info!(
+                    id = %run_id,
+                    session = %rec.session_dir.display(),
+                    frames_recorded = rec.frames_recorded,
+                    frames_dropped = rec.frames_dropped,
+                    e = report.e.as_ref().map(|e| e.value),
+                    e_uncertainty = report.e.as_ref().map(|e| e.uncertainty),
+                    "experiment done"
+                );
+                ("done", None)
+            }
+            Err(e) => {
+                tracing::error!(id = %run_id, error = %e, "experiment failed");
+                ("failed", Some(e.to_string()))
+            }
         };
         if let Some(e) = &err {
             *lock(&st.last_error) = Some(e.clone());
@@ -348,14 +437,70 @@ async fn status(State(state): State<Shared>) -> Response {
         .filter(|(_, h)| !h.is_finished())
         .map(|(id, _)| id.clone());
     let c = &state.cfg;
+    let (rig_state, opened_times, rig_error) = {
+        let h = lock(&state.rig_health);
+        (
+            if h.open { "open" } else { "closed" },
+            h.opened_times,
+            h.error.clone(),
+        )
+    };
+    let disk = match disk_space(&c.recording.dir) {
+        Ok((free, total)) => json!({"free_bytes": free, "total_bytes": total}),
+        Err(e) => json!({"error": e}),
+    };
     Json(json!({
-        "camera": {"backend": c.camera.backend, "device": c.camera.device, "width": c.camera.width, "height": c.camera.height, "frame_rate_hz": c.camera.frame_rate_hz},
-        "trigger": {"backend": c.trigger.backend, "port": c.trigger.port},
+        "camera": {"backend": c.camera.backend, "device": c.camera.device, "width": c.camera.width, "height": c.camera.height, "frame_rate_hz": c.camera.frame_rate_hz, "state": rig_state, "opened_times": opened_times, "error": rig_error},
+        "trigger": {"backend": c.trigger.backend, "port": c.trigger.port, "state": rig_state, "error": rig_error},
         "sessions_dir": c.recording.dir,
+        "disk": disk,
         "running": running,
         "last_error": *lock(&state.last_error),
     }))
     .into_response()
+}
+
+/// Free and total bytes on the file system that holds `dir` (or the nearest existing parent:
+/// the sessions directory is created by the first recording).
+fn disk_space(dir: &std::path::Path) -> Result<(u64, u64), String> {
+    let mut probe = if dir.as_os_str().is_empty() {
+        std::path::PathBuf::from(".")
+    } else {
+        dir.to_path_buf()
+    };
+    while !probe.exists() {
+        match probe.parent() {
+            Some(p) if !p.as_os_str().is_empty() => probe = p.to_path_buf(),
+            _ => {
+                probe = std::path::PathBuf::from(".");
+                break;
+            }
+        }
+    }
+    let c_path = std::ffi::CString::new(probe.as_os_str().as_encoded_bytes())
+        .map_err(|_| format!("{}: path contains a NUL byte", probe.display()))?;
+    let mut st = std::mem::MaybeUninit::<libc::statvfs>::zeroed();
+    // SAFETY: c_path is a valid NUL-terminated string and st points to writable memory of the
+    // right type; statvfs fills it on success.
+    let rc = unsafe { libc::statvfs(c_path.as_ptr(), st.as_mut_ptr()) };
+    if rc != 0 {
+        return Err(format!(
+            "{}: statvfs: {}",
+            probe.display(),
+            std::io::Error::last_os_error()
+        ));
+    }
+    // SAFETY: statvfs returned 0, so the struct is initialised.
+    let st = unsafe { st.assume_init() };
+    Ok(statvfs_bytes(&st))
+}
+
+/// (free to unprivileged users, total) bytes.
+// c_ulong and fsblkcnt_t are not u64 on every target.
+#[allow(clippy::unnecessary_cast)]
+fn statvfs_bytes(st: &libc::statvfs) -> (u64, u64) {
+    let frag = st.f_frsize as u64;
+    (st.f_bavail as u64 * frag, st.f_blocks as u64 * frag)
 }
 
 async fn events_sse(State(state): State<Shared>, Path(id): Path<String>) -> Response {
