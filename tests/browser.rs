@@ -154,6 +154,12 @@ fn clicking_run_in_a_browser_shows_the_result() {
         }
     };
     wait_for(&mut eval, "document.readyState === 'complete' && !!document.getElementById('run') && document.getElementById('rig').textContent.includes('camera sim')", 20);
+    let rig = eval("document.getElementById('rig').textContent");
+    let rig = rig.as_str().unwrap();
+    assert!(
+        rig.contains(", open;") && rig.contains("GB free for sessions"),
+        "the page shows the rig's state and the free disk space: {rig}"
+    );
     eval("document.getElementById('notes').value = 'from the browser'; document.getElementById('run').click(); true");
     let e_text = wait_for(
         &mut eval,

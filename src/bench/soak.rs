@@ -71,6 +71,7 @@ pub fn soak(experiments: usize, dir: &std::path::Path) -> Result<String, String>
         .to_string();
     let run = || -> Result<String, String> {
         let mut first = None;
+        let mut samples: Vec<(u64, usize)> = Vec::with_capacity(experiments);
         let t0 = Instant::now();
         for k in 0..experiments {
             let (code, body) = request(&addr, "POST", "/api/experiments")?;
@@ -91,9 +92,11 @@ pub fn soak(experiments: usize, dir: &std::path::Path) -> Result<String, String>
                     _ => return Err(format!("experiment {id} ended without a report: {v}")),
                 }
             }
+            let fig = proc_figures(child.id());
             if k == 0 {
-                first = Some(proc_figures(child.id()));
+                first = Some(fig);
             }
+            samples.push(fig);
         }
         let elapsed = t0.elapsed();
         let last = proc_figures(child.id());
@@ -130,6 +133,29 @@ pub fn soak(experiments: usize, dir: &std::path::Path) -> Result<String, String>
             "daemon open file descriptors: {} after the first, {} after the last",
             first.1, last.1
         );
+        // Growth that stops (allocator arenas, caches filling once) and growth that goes on
+        // (a leak) look alike over the whole run; the second half tells them apart.
+        let checkpoints: Vec<String> = [
+            1,
+            experiments / 4,
+            experiments / 2,
+            3 * experiments / 4,
+            experiments,
+        ]
+        .iter()
+        .filter(|&&k| k >= 1 && k <= samples.len())
+        .map(|&k| format!("{k}: {} KiB", samples[k - 1].0))
+        .collect();
+        let _ = writeln!(s, "VmRSS after experiment {}", checkpoints.join(", "));
+        if samples.len() >= 4 {
+            let half = samples.len() / 2;
+            let per = (samples[samples.len() - 1].0 as f64 - samples[half - 1].0 as f64)
+                / (samples.len() - half) as f64;
+            let _ = writeln!(
+                s,
+                "growth over the second half: {per:.1} KiB per experiment"
+            );
+        }
         if complete != experiments {
             return Err(format!(
                 "{s}only {complete} of {experiments} sessions are complete with a report"
