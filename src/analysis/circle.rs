@@ -122,12 +122,16 @@ pub fn robust_fit(points: &[[f64; 2]], oversampling: f64) -> Option<CircleFit> {
         let mut abs: Vec<f64> = res.iter().map(|x| x.abs()).collect();
         abs.sort_by(f64::total_cmp);
         let sigma = 1.4826 * abs[abs.len() / 2];
-        let limit = (3.0 * sigma).max(0.3);
+        // Asymmetric: a marker near the limb darkens the rim and moves edge points inwards
+        // only, by a few tenths of a pixel; noise moves them both ways. Cutting the inner tail
+        // harder removes the markers' bias of the centre, and for noise costs only a slightly
+        // larger radius (the centre of a symmetric cut stays put).
+        let (limit_in, limit_out) = ((1.5 * sigma).max(0.05), (3.0 * sigma).max(0.1));
         let before = keep.len();
         keep = keep
             .iter()
             .zip(res.iter())
-            .filter(|(_, e)| e.abs() <= limit)
+            .filter(|(_, e)| **e >= -limit_in && **e <= limit_out)
             .map(|(p, _)| *p)
             .collect();
         start = (c, r);
@@ -160,12 +164,19 @@ pub fn robust_fit(points: &[[f64; 2]], oversampling: f64) -> Option<CircleFit> {
 
 /// Edge points of the disc around `centre`: along each ray, the first fall through `level`
 /// outward from inside the disc, interpolated linearly between samples.
+///
+/// A ray that crosses a marker is not used: its profile dips and rises again inside the disc
+/// (by more than `dip`), or rises back above `level` just after the "edge". Dark markers near
+/// the limb, passing through the rim as the sphere spins, would otherwise move the edge inwards
+/// on a few rays and bias the centre by a slowly varying few hundredths of a pixel — errors that
+/// do not average out along a trajectory.
 pub fn edge_points(
     img: &GreyImage,
     view: &View,
     centre: [f64; 2],
     radius_px: f64,
     level: f64,
+    dip: f64,
     rays: usize,
 ) -> Vec<[f64; 2]> {
     let mut pts = Vec::with_capacity(rays);
@@ -177,6 +188,7 @@ pub fn edge_points(
         let (dx, dy) = (a.cos(), a.sin());
         let mut prev: Option<(f64, f64)> = None;
         let mut was_inside = false;
+        let mut lowest_inside = f64::INFINITY;
         let mut r = r_start;
         while r <= r_end {
             let (u, v) = (centre[0] + r * dx, centre[1] + r * dy);
@@ -185,12 +197,23 @@ pub fn edge_points(
             }
             let Some(val) = img.sample(u, v) else { break };
             if val >= level {
+                if val > lowest_inside + dip {
+                    break;
+                }
+                lowest_inside = lowest_inside.min(val);
                 was_inside = true;
             } else if was_inside {
                 if let Some((pr, pv)) = prev {
                     let f = (pv - level) / (pv - val);
                     let re = pr + f * (r - pr);
-                    pts.push([centre[0] + re * dx, centre[1] + re * dy]);
+                    let rises_again = (1..=8).any(|j| {
+                        let rr = r + j as f64 * step;
+                        img.sample(centre[0] + rr * dx, centre[1] + rr * dy)
+                            .is_some_and(|w| w >= level)
+                    });
+                    if !rises_again {
+                        pts.push([centre[0] + re * dx, centre[1] + re * dy]);
+                    }
                 }
                 break;
             }
@@ -201,14 +224,22 @@ pub fn edge_points(
     pts
 }
 
+/// Edge points closer than this to the other sphere's disc are not used: in the narrow gap
+/// between two spheres the background never reaches its level (both rims' blur and the motion
+/// smear add up), so the edge there moves outwards and pulls the centre towards the other
+/// sphere — a bias that grows as they approach and tilts the last frames before the impact.
+pub const NEIGHBOUR_MARGIN_PX: f64 = 3.0;
+
 /// Refines a rough centre to a sub-pixel circle fit. `background` and `interior` set the edge
-/// level (halfway between them).
+/// level (halfway between them). `other` is the other sphere's disc (centre, radius px) in the
+/// same view, when it is there.
 pub fn refine(
     img: &GreyImage,
     view: &View,
     rough: [f64; 2],
     radius_px: f64,
     background: f64,
+    other: Option<([f64; 2], f64)>,
 ) -> Option<CircleFit> {
     let rays = ((std::f64::consts::TAU * radius_px * 1.5).round() as usize).clamp(24, 720);
     let oversampling = rays as f64 / (std::f64::consts::TAU * radius_px);
@@ -235,7 +266,11 @@ pub fn refine(
     let mut centre = rough;
     let mut fit = None;
     for _ in 0..2 {
-        let pts = edge_points(img, view, centre, radius_px, level, rays);
+        let dip = 0.1 * (interior - background);
+        let mut pts = edge_points(img, view, centre, radius_px, level, dip, rays);
+        if let Some((oc, or)) = other {
+            pts.retain(|p| (p[0] - oc[0]).hypot(p[1] - oc[1]) > or + NEIGHBOUR_MARGIN_PX);
+        }
         if pts.len() < rays / 3 {
             return fit;
         }
@@ -244,6 +279,211 @@ pub fn refine(
         fit = Some(f);
     }
     fit
+}
+
+/// Centre of a circle of known radius through `points` (Gauss–Newton from `start`), dropping
+/// points further than max(3σ, 0.1 px) from it and refitting.
+pub fn fit_fixed_radius(
+    points: &[[f64; 2]],
+    start: [f64; 2],
+    radius: f64,
+    oversampling: f64,
+) -> Option<CircleFit> {
+    let mut keep: Vec<[f64; 2]> = points.to_vec();
+    let mut c = start;
+    let mut result = None;
+    for _ in 0..3 {
+        if keep.len() < 8 {
+            return result;
+        }
+        for _ in 0..20 {
+            let mut jtj = nalgebra::Matrix2::<f64>::zeros();
+            let mut jtr = nalgebra::Vector2::<f64>::zeros();
+            for p in &keep {
+                let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+                let d = dx.hypot(dy).max(1e-12);
+                let j = nalgebra::Vector2::new(-dx / d, -dy / d);
+                jtj += j * j.transpose();
+                jtr += j * (d - radius);
+            }
+            let step = jtj.lu().solve(&(-jtr))?;
+            c[0] += step[0];
+            c[1] += step[1];
+            if step.norm() < 1e-9 {
+                break;
+            }
+        }
+        let mut jtj = nalgebra::Matrix2::<f64>::zeros();
+        let res: Vec<f64> = keep
+            .iter()
+            .map(|p| {
+                let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+                let d = dx.hypot(dy).max(1e-12);
+                let j = nalgebra::Vector2::new(-dx / d, -dy / d);
+                jtj += j * j.transpose();
+                d - radius
+            })
+            .collect();
+        let n = keep.len() as f64;
+        let s2 = res.iter().map(|e| e * e).sum::<f64>() / (n - 2.0).max(1.0);
+        let inv = jtj.try_inverse()?;
+        let cov_scale = s2 * oversampling.max(1.0);
+        result = Some(CircleFit {
+            centre: c,
+            radius,
+            centre_sigma: [
+                (cov_scale * inv[(0, 0)]).sqrt(),
+                (cov_scale * inv[(1, 1)]).sqrt(),
+            ],
+            radius_sigma: 0.0,
+            rms_px: s2.sqrt(),
+            points_used: keep.len(),
+            points_total: points.len(),
+        });
+        let limit = (3.0 * s2.sqrt()).max(0.1);
+        let before = keep.len();
+        keep = keep
+            .iter()
+            .zip(&res)
+            .filter(|(_, r)| r.abs() <= limit)
+            .map(|(p, _)| *p)
+            .collect();
+        if keep.len() == before {
+            break;
+        }
+    }
+    result
+}
+
+/// The discs in one silhouette that holds both spheres (touching, or one partly hiding the
+/// other in this view): the outermost edge on rays from the blob's centroid traces the union's
+/// outline, two arcs of circles of about the known radius. Each circle is found by consensus —
+/// every pair of outline points a radius apart proposes the two circles of that radius through
+/// them, and the proposal most points agree with wins — then refined by the robust fit on its
+/// own points; the second is searched among the points the first does not explain. Circles
+/// resting on less than a quarter of the outline are not returned.
+pub fn split_pair(
+    img: &GreyImage,
+    view: &View,
+    centroid: [f64; 2],
+    radius_px: f64,
+    background: f64,
+    peak: f64,
+) -> Vec<CircleFit> {
+    let rays = ((std::f64::consts::TAU * 2.0 * radius_px * 1.5).round() as usize).clamp(48, 1440);
+    let oversampling = rays as f64 / (std::f64::consts::TAU * 2.0 * radius_px);
+    let r_max = 2.0 * radius_px + 4.0;
+    let step = 0.2;
+    // Outermost fall through `level` on each ray, searching inwards from beyond the union.
+    let outline = |level: f64| -> Vec<([f64; 2], f64)> {
+        let mut pts = Vec::with_capacity(rays);
+        for k in 0..rays {
+            let a = std::f64::consts::TAU * k as f64 / rays as f64;
+            let (dx, dy) = (a.cos(), a.sin());
+            let mut r = r_max;
+            let mut outer: Option<(f64, f64)> = None;
+            while r > 0.0 {
+                let (u, v) = (centroid[0] + r * dx, centroid[1] + r * dy);
+                let val = if view.contains(u, v) {
+                    img.sample(u, v)
+                } else {
+                    None
+                };
+                match (val, outer) {
+                    (Some(val), Some((ro, vo))) if val >= level => {
+                        let f = (val - level) / (val - vo);
+                        let re = r + f * (ro - r);
+                        let rim = img
+                            .sample(centroid[0] + (re - 1.5) * dx, centroid[1] + (re - 1.5) * dy)
+                            .unwrap_or(level);
+                        pts.push(([centroid[0] + re * dx, centroid[1] + re * dy], rim));
+                        break;
+                    }
+                    (Some(val), _) => outer = Some((r, val)),
+                    // Outside the view: the outline is clipped here.
+                    (None, _) if outer.is_some() => break,
+                    (None, _) => {}
+                }
+                r -= step;
+            }
+        }
+        pts
+    };
+    let first = outline(background + 0.5 * (peak - background));
+    if first.len() < rays / 2 {
+        return Vec::new();
+    }
+    let mut rims: Vec<f64> = first.iter().map(|p| p.1).collect();
+    rims.sort_by(f64::total_cmp);
+    let interior = rims[rims.len() * 3 / 4];
+    if interior <= background {
+        return Vec::new();
+    }
+    let mut points: Vec<[f64; 2]> = outline(background + 0.5 * (interior - background))
+        .into_iter()
+        .map(|p| p.0)
+        .collect();
+    let tol = 0.3;
+    let mut out = Vec::new();
+    for _ in 0..2 {
+        let n = points.len();
+        if n < rays / 4 {
+            break;
+        }
+        let mut best: Option<([f64; 2], usize)> = None;
+        for i in 0..n {
+            for j in (i + 1..n).step_by((n / 24).max(1)) {
+                let (p, q) = (points[i], points[j]);
+                let d = (q[0] - p[0]).hypot(q[1] - p[1]);
+                if d < 0.5 * radius_px || d >= 2.0 * radius_px {
+                    continue;
+                }
+                let h = (radius_px * radius_px - d * d / 4.0).sqrt();
+                let mid = [(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0];
+                let perp = [-(q[1] - p[1]) / d, (q[0] - p[0]) / d];
+                for sgn in [-1.0, 1.0] {
+                    let c = [mid[0] + sgn * h * perp[0], mid[1] + sgn * h * perp[1]];
+                    let support = points
+                        .iter()
+                        .filter(|x| ((x[0] - c[0]).hypot(x[1] - c[1]) - radius_px).abs() < tol)
+                        .count();
+                    if best.is_none_or(|(_, b)| support > b) {
+                        best = Some((c, support));
+                    }
+                }
+            }
+        }
+        let Some((c, support)) = best else { break };
+        if support < rays / 4 {
+            break;
+        }
+        // Its points, then the centre by least squares with the radius held: a free radius
+        // would reach for the other arc where the two meet.
+        let mine: Vec<[f64; 2]> = points
+            .iter()
+            .copied()
+            .filter(|x| ((x[0] - c[0]).hypot(x[1] - c[1]) - radius_px).abs() < tol)
+            .collect();
+        let Some(fit) = fit_fixed_radius(&mine, c, radius_px, oversampling) else {
+            break;
+        };
+        points.retain(|x| {
+            ((x[0] - fit.centre[0]).hypot(x[1] - fit.centre[1]) - fit.radius).abs() >= tol
+        });
+        // A short arc fixes the centre well only across its chord: at least half the circle
+        // must be seen (36 sectors of 10°).
+        let mut sectors = [false; 36];
+        for x in &mine {
+            let a = (x[1] - fit.centre[1]).atan2(x[0] - fit.centre[0]);
+            let k = ((a + std::f64::consts::PI) / std::f64::consts::TAU * 36.0) as usize;
+            sectors[k.min(35)] = true;
+        }
+        if sectors.iter().filter(|s| **s).count() < 18 {
+            continue;
+        }
+        out.push(fit);
+    }
+    out
 }
 
 #[cfg(test)]

@@ -243,7 +243,43 @@ fn phases(obs: &[FrameObs], split: f64, guard: f64) -> [Vec<usize>; 4] {
 /// The four ballistic fits for a given split.
 fn fit_all(obs: &[FrameObs], views: &[View], t_ref: f64, split: f64, guard: f64, g: f64) -> Fits {
     let ph = phases(obs, split, guard);
-    [0, 1, 2, 3].map(|k| SideFit::fit(&series(obs, views, k % 2, &ph[k]), t_ref, g))
+    let mut fits = [0, 1, 2, 3].map(|k| SideFit::fit(&series(obs, views, k % 2, &ph[k]), t_ref, g));
+    keep_common_axes(&mut fits);
+    fits
+}
+
+/// Drops a world axis from all four fits unless every one of them measured it, and says which
+/// axes went. A coordinate that no view saw for one sphere in one phase (in the mirror the two
+/// spheres can hide each other from the impact to the end of the recording) must not enter the
+/// collision as a zero velocity: the collision is then analysed in the axes all four share.
+fn keep_common_axes(fits: &mut Fits) -> Vec<usize> {
+    let mut dropped = Vec::new();
+    for i in 0..3 {
+        let present = fits.iter().filter(|f| f.axes[i].is_some()).count();
+        if present > 0 && present < fits.len() {
+            for f in fits.iter_mut() {
+                f.axes[i] = None;
+            }
+            dropped.push(i);
+        }
+    }
+    dropped
+}
+
+/// Which of [a pre, b pre, a post, b post] measured no position along world axis `i`.
+fn phases_missing_axis(
+    obs: &[FrameObs],
+    views: &[View],
+    split: f64,
+    guard: f64,
+    i: usize,
+) -> Vec<&'static str> {
+    let ph = phases(obs, split, guard);
+    let names = ["a before", "b before", "a after", "b after"];
+    (0..4)
+        .filter(|&k| series(obs, views, k % 2, &ph[k])[i].is_empty())
+        .map(|k| names[k])
+        .collect()
 }
 
 /// Analyses any frame source with the given config.
@@ -448,11 +484,33 @@ pub fn analyze_observations(
     .map_err(impact_err)?;
     let t_c = split + d.tau_c;
 
-    let three_d = views.len() == 2;
-    if !three_d {
+    // Axes some view measures, but not for every sphere in every phase: dropped by fit_all.
+    let seen_axes: Vec<usize> = (0..3)
+        .filter(|&i| {
+            views
+                .iter()
+                .any(|v| v.unproject([0.0, 0.0]).iter().any(|(axis, _)| *axis == i))
+        })
+        .collect();
+    let lost_axes: Vec<usize> = seen_axes
+        .iter()
+        .copied()
+        .filter(|&i| fits.iter().all(|f| f.axes[i].is_none()))
+        .collect();
+    let three_d = views.len() == 2 && lost_axes.is_empty();
+    if views.len() < 2 {
         warnings.push(format!(
             "only the {} view is configured: results are 2-D (the missing coordinate is taken as constant)",
             views[0].kind.name()
+        ));
+    }
+    for &i in &lost_axes {
+        let missing = phases_missing_axis(&obs, &views, split, 0.5 * period, i);
+        warnings.push(format!(
+            "{} was not measured for sphere {} the impact (in the mirror view the spheres hide each other): results are 2-D, without {}",
+            ["x", "y", "z"][i],
+            missing.join(", "),
+            ["x", "y", "z"][i]
         ));
     }
     let dropped = frames_dropped;
@@ -694,6 +752,8 @@ fn combined_uncertainties(
             [0, 1, 2, 3].map(|j| ph[j].iter().copied().filter(|&f| f != k).collect());
         let fk: Fits =
             [0, 1, 2, 3].map(|j| SideFit::fit(&series(obs, views, j % 2, &without[j]), split, g));
+        let mut fk = fk;
+        keep_common_axes(&mut fk);
         if let Ok(d) = derive(&fk, omega, radii, contact_mm, g) {
             reps.push(d.to_vec());
         }

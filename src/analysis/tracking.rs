@@ -2,7 +2,7 @@
 //! sub-pixel circle fit, and the measurements are labelled a or b (a has the smaller world x, as
 //! the report contract says). What cannot be measured is listed with the reason.
 
-use super::circle::refine;
+use super::circle::{refine, split_pair, CircleFit};
 use super::detect::{find_blobs, levels, Blob};
 use super::geometry::View;
 use super::image::GreyImage;
@@ -81,6 +81,56 @@ pub fn measure_all(
                 [None, None]
             };
             let contact_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
+            // One silhouette holding both spheres in a secondary view (after a collision they
+            // can stay one behind the other in the mirror to the end of the recording): each
+            // sphere's visible arc is fitted on its own, and labelled by the x the primary view
+            // measured, or by where this view last saw each.
+            if vi > 0 && blobs.len() == 1 && !blobs[0].clipped {
+                let close =
+                    matches!(primary_x, [Some(xa), Some(xb)] if (xa - xb).abs() < contact_mm);
+                if blobs[0].merged || close {
+                    let t = meta.timestamp_ns as f64 * 1e-9;
+                    let r_seen: Vec<f64> = memory[vi].radius.iter().flatten().copied().collect();
+                    let r_fit = if r_seen.is_empty() {
+                        r_mean
+                    } else {
+                        r_seen.iter().sum::<f64>() / r_seen.len() as f64
+                    };
+                    let fits =
+                        split_pair(&img, view, blobs[0].centroid, r_fit, lv.background, lv.peak);
+                    let predicted = [0, 1].map(|s| memory[vi].predict(s, t, max_gap_s));
+                    let labels = label_split(&fits, view, primary_x, predicted, r_mean);
+                    if labels.iter().any(|l| l.is_some()) {
+                        for (s, f) in labels.iter().enumerate() {
+                            match f {
+                                Some(f) => {
+                                    spheres[s][vi] = Some(Measurement {
+                                        centre_px: f.centre,
+                                        // The thesis baseline would click this disc's
+                                        // centre, not the merged silhouette's.
+                                        blob_centroid_px: f.centre,
+                                        sigma_px: f.centre_sigma,
+                                        diameter_px: 2.0 * f.radius,
+                                        // Dots near the overlap may belong to either sphere.
+                                        markers: Vec::new(),
+                                    });
+                                    memory[vi].last[s] = Some(f.centre);
+                                    memory[vi].history[s].push((t, f.centre));
+                                }
+                                None => unmeasured.push(Unmeasured {
+                                    frame: i as u64,
+                                    view: view.kind.name().into(),
+                                    reason: format!(
+                                        "{}: hidden by the other sphere in this view",
+                                        ["a", "b"][s]
+                                    ),
+                                }),
+                            }
+                        }
+                        continue;
+                    }
+                }
+            }
             let assigned = match primary_x {
                 // Closer in x than a diameter, one may hide the other in this view: a single
                 // blob is then both, partly, and neither centre can be trusted.
@@ -152,7 +202,8 @@ pub fn measure_all(
                     });
                     continue;
                 }
-                match refine(&img, view, b.centroid, radius[s], lv.background) {
+                let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
+                match refine(&img, view, b.centroid, radius[s], lv.background, other) {
                     // A silhouette partly hidden by, or touching, the other sphere is not one
                     // circle: its fit is too large or rests on too few of its edge points.
                     Some(f)
@@ -189,6 +240,7 @@ pub fn measure_all(
                             ),
                         });
                         memory[vi].last[s] = Some(f.centre);
+                        memory[vi].radius[s] = Some(f.radius);
                         memory[vi].history[s].push((meta.timestamp_ns as f64 * 1e-9, f.centre));
                     }
                     None => unmeasured.push(Unmeasured {
@@ -236,6 +288,53 @@ pub fn measure_all(
         progress(i + 1, n);
     }
     Ok((out, unmeasured))
+}
+
+/// Labels the circles found in one silhouette holding both spheres: by world x against the x
+/// the primary view measured for a and b, when that tells them apart by more than 0.3 mm
+/// (fifteen times the x error of either); else by the positions this view predicts from its
+/// own recent frames, when those differ by more than half a radius. Otherwise neither.
+fn label_split<'a>(
+    fits: &'a [CircleFit],
+    view: &View,
+    x: [Option<f64>; 2],
+    predicted: [Option<[f64; 2]>; 2],
+    radius_px: f64,
+) -> [Option<&'a CircleFit>; 2] {
+    const X_MARGIN_MM: f64 = 0.3;
+    let by_x = |f: &CircleFit, s: usize| x[s].map(|xs| (world_x(view, f.centre) - xs).abs());
+    let by_px = |f: &CircleFit, s: usize| {
+        predicted[s].map(|p| (f.centre[0] - p[0]).hypot(f.centre[1] - p[1]))
+    };
+    let decide =
+        |straight: Option<f64>, swapped: Option<f64>, margin: f64| match (straight, swapped) {
+            (Some(a), Some(b)) if (a - b).abs() > margin => Some(a < b),
+            _ => None,
+        };
+    match fits {
+        [p, q] => {
+            let sum = |c: &dyn Fn(&CircleFit, usize) -> Option<f64>,
+                       f0: &CircleFit,
+                       f1: &CircleFit| { Some(c(f0, 0)? + c(f1, 1)?) };
+            let straight_first = decide(sum(&by_x, p, q), sum(&by_x, q, p), X_MARGIN_MM)
+                .or_else(|| decide(sum(&by_px, p, q), sum(&by_px, q, p), 0.5 * radius_px));
+            match straight_first {
+                Some(true) => [Some(p), Some(q)],
+                Some(false) => [Some(q), Some(p)],
+                None => [None, None],
+            }
+        }
+        [p] => {
+            let is_a = decide(by_x(p, 0), by_x(p, 1), X_MARGIN_MM)
+                .or_else(|| decide(by_px(p, 0), by_px(p, 1), 0.5 * radius_px));
+            match is_a {
+                Some(true) => [Some(p), None],
+                Some(false) => [None, Some(p)],
+                None => [None, None],
+            }
+        }
+        _ => [None, None],
+    }
 }
 
 /// x at time t on the line through the last (up to) three points, if the last is recent.
@@ -315,6 +414,10 @@ fn assign_by_continuity<'a>(blobs: &'a [Blob], memory: &ViewMemory) -> [Option<&
 #[derive(Clone, Default)]
 struct ViewMemory {
     last: [Option<[f64; 2]>; 2],
+    /// Radius of the last single-sphere fit of each sphere in this view, px: the edge level
+    /// makes it a little smaller than the known diameter says, and a split silhouette is fitted
+    /// with this one.
+    radius: [Option<f64>; 2],
     /// Image direction from a to b the last time both were seen.
     a_to_b: Option<[f64; 2]>,
     /// Whether both were measured in this view in the previous frame.

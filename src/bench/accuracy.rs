@@ -121,6 +121,9 @@ pub struct CaseResult {
     pub z_velocity: Vec<f64>,
     pub z_spin: Vec<f64>,
     pub centre_err_px: Vec<f64>,
+    /// Per detected marker used (relative to its disc centre, against the truth's): (ρ/R,
+    /// |error| px, radial error px, + outwards).
+    pub marker_err_px: Vec<(f64, f64, f64)>,
     pub rot_err_deg: Vec<f64>,
     pub thesis_e: Option<f64>,
     pub thesis_psi1: Option<f64>,
@@ -226,9 +229,12 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
         let tv = v3(&truth["spheres"][s][ph]["velocity_mm_s"]);
         let tw = v3(&truth["spheres"][s][ph]["spin_rad_s"]);
         true_spins[k] = tw;
+        // Axes the analysis did not measure (a 2-D result) are not errors of the measurement.
+        let measured = V3::from(vel.uncertainty.map(|u| if u > 0.0 { 1.0 } else { 0.0 }));
         let ev = V3::from(vel.value);
-        out.vel_rel.push((ev - tv).norm() / tv.norm());
-        for i in 0..3 {
+        out.vel_rel
+            .push((ev - tv).component_mul(&measured).norm() / tv.component_mul(&measured).norm());
+        for i in (0..3).filter(|&i| vel.uncertainty[i] > 0.0) {
             out.z.push((ev[i] - tv[i]) / vel.uncertainty[i]);
             out.z_velocity.push((ev[i] - tv[i]) / vel.uncertainty[i]);
         }
@@ -262,6 +268,43 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
                 };
                 out.centre_err_px
                     .push((m.centre_px[0] - tu).hypot(m.centre_px[1] - tv));
+                let sphere = &tf["spheres"][name];
+                let c = v3(&sphere["centre_mm"]);
+                let r_px = m.diameter_px / 2.0;
+                let truths: Vec<[f64; 2]> = sphere["markers_mm"]
+                    .as_array()
+                    .map(|a| a.iter().map(v3).collect::<Vec<V3>>())
+                    .unwrap_or_default()
+                    .iter()
+                    .map(|mk| mk - c)
+                    .filter(|d| d.dot(&view.facing) > 0.0)
+                    .map(|d| {
+                        [
+                            view.px_per_mm * view.u_axis.dot(&d),
+                            view.px_per_mm * view.v_axis.dot(&d),
+                        ]
+                    })
+                    .collect();
+                for mk in &m.markers {
+                    let rel = [
+                        mk.centre_px[0] - m.centre_px[0],
+                        mk.centre_px[1] - m.centre_px[1],
+                    ];
+                    let nearest = truths.iter().min_by(|a, b| {
+                        let da = (a[0] - rel[0]).hypot(a[1] - rel[1]);
+                        let db = (b[0] - rel[0]).hypot(b[1] - rel[1]);
+                        da.total_cmp(&db)
+                    });
+                    let Some(t) = nearest else { continue };
+                    let err = [rel[0] - t[0], rel[1] - t[1]];
+                    let rho = t[0].hypot(t[1]);
+                    if err[0].hypot(err[1]) > 1.0 || rho <= 0.0 {
+                        continue; // not this marker: a neighbour was nearer
+                    }
+                    let radial = (err[0] * t[0] + err[1] * t[1]) / rho;
+                    out.marker_err_px
+                        .push((rho / r_px, err[0].hypot(err[1]), radial));
+                }
                 let r = m.blob_centroid_px.map(f64::round);
                 out.thesis_centre_err_px.push((r[0] - tu).hypot(r[1] - tv));
             }
@@ -465,6 +508,28 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
         rms(&all(&|r| r.centre_err_px.clone())),
         rms(&all(&|r| r.thesis_centre_err_px.clone()))
     );
+    let markers: Vec<(f64, f64, f64)> = results
+        .iter()
+        .flat_map(|(_, r)| r.marker_err_px.iter().copied())
+        .collect();
+    let _ = writeln!(
+        s,
+        "marker position (relative to its disc centre), by distance from the disc centre ρ/R:"
+    );
+    for (lo, hi) in [(0.0, 0.4), (0.4, 0.6), (0.6, 0.7), (0.7, 0.8)] {
+        let sel: Vec<&(f64, f64, f64)> = markers.iter().filter(|m| m.0 >= lo && m.0 < hi).collect();
+        if sel.is_empty() {
+            continue;
+        }
+        let abs: Vec<f64> = sel.iter().map(|m| m.1).collect();
+        let mean_radial = sel.iter().map(|m| m.2).sum::<f64>() / sel.len() as f64;
+        let _ = writeln!(
+            s,
+            "  {lo:.1}–{hi:.1}: median error {:.3} px, mean radial error {mean_radial:+.3} px (+ outwards), {} markers",
+            stats(&abs).map(|x| x.0).unwrap_or(f64::NAN),
+            sel.len()
+        );
+    }
     let spins_measured = ok.iter().filter(|r| r.psi1.is_some()).count();
     let _ = writeln!(
         s,
