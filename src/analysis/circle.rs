@@ -520,4 +520,95 @@ mod tests {
         assert!((f.centre[0] - 5.0).abs() < 1e-6, "{:?}", f.centre);
         assert_eq!(f.points_used, 54);
     }
+
+    /// Two spheres rendered by the simulator, one partly behind the other (centres 0.6–0.9
+    /// diameters apart): both discs come out of the one silhouette near their true centres.
+    #[test]
+    fn one_silhouette_of_two_overlapping_spheres_gives_both_discs() {
+        use crate::analysis::geometry::{ViewKind, V3};
+        use crate::config::ViewGeometry;
+        use hw_sim::physics::Body;
+        let g = ViewGeometry {
+            region: [0, 0, 80, 64],
+            px_per_mm: 2.1576,
+            origin_px: [39.3, 31.6],
+            u_axis: "+x".into(),
+            v_axis: "-y".into(),
+        };
+        let view = View::from_config(ViewKind::Direct, &g);
+        let radius_mm = 3.175;
+        let r_px = radius_mm * g.px_per_mm;
+        for (k, (dx, dy)) in [(4.0, 1.5), (5.5, -0.7), (3.4, 2.6), (2.0, 4.9)]
+            .iter()
+            .enumerate()
+        {
+            let scene = hw_sim::Scene {
+                width: 80,
+                height: 64,
+                frame_rate_hz: 1000.0,
+                bit_depth: 8,
+                views: vec![hw_sim::ViewSpec {
+                    name: "direct".into(),
+                    region: g.region,
+                    px_per_mm: g.px_per_mm,
+                    origin_px: g.origin_px,
+                    u_axis: view.u_axis.into(),
+                    v_axis: view.v_axis.into(),
+                    facing: view.facing.into(),
+                }],
+                spheres: [0, 1].map(|_| hw_sim::SphereSpec {
+                    diameter_mm: 6.35,
+                    mass_g: 1.0,
+                }),
+            };
+            let cfg = hw_sim::LabConfig {
+                markers_per_sphere: 0,
+                ..Default::default()
+            };
+            let centres = [
+                V3::new(-dx / 2.0, -dy / 2.0, 0.0),
+                // b is behind a (further from the camera along the view's facing direction).
+                V3::new(dx / 2.0, dy / 2.0, 0.0) - view.facing * 4.0,
+            ];
+            let body = |pos: V3| Body {
+                pos_mm: pos,
+                vel_mm_s: V3::zeros(),
+                spin_rad_s: V3::zeros(),
+                orientation: nalgebra::UnitQuaternion::identity(),
+                radius_mm,
+                mass_g: 1.0,
+            };
+            let state = move |_t: f64| ([body(centres[0]), body(centres[1])], [vec![], vec![]]);
+            let mut r = hw_sim::render::Renderer::new(scene, cfg.clone(), 7 + k as u64);
+            let mut raw = Vec::new();
+            r.render(0.0, &state, &mut raw);
+            let mut img = GreyImage::new();
+            img.load(&raw, 80, 64, 1);
+            let truth = centres.map(|c| view.project(&c));
+            let mid = [
+                (truth[0][0] + truth[1][0]) / 2.0,
+                (truth[0][1] + truth[1][1]) / 2.0,
+            ];
+            // Radius as a single-sphere fit measures it at the edge level.
+            let fits = split_pair(
+                &img,
+                &view,
+                mid,
+                r_px - 0.15,
+                cfg.background_grey,
+                cfg.sphere_grey,
+            );
+            assert_eq!(fits.len(), 2, "case {k}: {fits:?}");
+            for t in truth {
+                let best = fits
+                    .iter()
+                    .map(|f| (f.centre[0] - t[0]).hypot(f.centre[1] - t[1]))
+                    .fold(f64::INFINITY, f64::min);
+                assert!(
+                    best < 0.12,
+                    "case {k}: a disc {best:.3} px from the truth {t:?}: {fits:?}"
+                );
+            }
+        }
+    }
 }

@@ -172,24 +172,35 @@ pub fn find(
             }
             (mu, mv) = next;
         }
-        let du_mm = (mu - cu) / foreshortening / view.px_per_mm;
-        let dv_mm = (mv - cv) / foreshortening / view.px_per_mm;
-        let rho2 = du_mm * du_mm + dv_mm * dv_mm;
-        if rho2 > (MAX_RHO_FRACTION * radius_mm).powi(2) {
-            continue;
-        }
-        let depth = (radius_mm * radius_mm - rho2).max(0.0).sqrt();
-        let rel = view.u_axis * du_mm + view.v_axis * dv_mm + view.facing * depth;
-        out.push(MarkerObs {
-            centre_px: [
-                cu + (mu - cu) / foreshortening,
-                cv + (mv - cv) / foreshortening,
-            ],
-            rel_mm: rel,
-            weight: (depth / radius_mm).powi(2),
-        });
+        let dot = [
+            cu + (mu - cu) / foreshortening,
+            cv + (mv - cv) / foreshortening,
+        ];
+        out.extend(lift(view, dot, [cu, cv], radius_mm));
     }
     out
+}
+
+/// A dot at image position `dot_px` on the sphere whose centre is at `centre_px`, lifted onto
+/// the hemisphere facing the view; None beyond `MAX_RHO_FRACTION` of the radius.
+pub fn lift(
+    view: &View,
+    dot_px: [f64; 2],
+    centre_px: [f64; 2],
+    radius_mm: f64,
+) -> Option<MarkerObs> {
+    let du_mm = (dot_px[0] - centre_px[0]) / view.px_per_mm;
+    let dv_mm = (dot_px[1] - centre_px[1]) / view.px_per_mm;
+    let rho2 = du_mm * du_mm + dv_mm * dv_mm;
+    if rho2 > (MAX_RHO_FRACTION * radius_mm).powi(2) {
+        return None;
+    }
+    let depth = (radius_mm * radius_mm - rho2).max(0.0).sqrt();
+    Some(MarkerObs {
+        centre_px: dot_px,
+        rel_mm: view.u_axis * du_mm + view.v_axis * dv_mm + view.facing * depth,
+        weight: (depth / radius_mm).powi(2),
+    })
 }
 
 /// The sphere's own shading under its markers: grey = a + b·n + c·n² + d·x + f·y, with n the

@@ -248,6 +248,48 @@ fn fit_all(obs: &[FrameObs], views: &[View], t_ref: f64, split: f64, guard: f64,
     fits
 }
 
+/// Markers lifted again about the sphere's centre on its fitted trajectory instead of the
+/// frame's own circle fit: the trajectory, fitted over every frame of the phase, is several
+/// times more precise than one frame's circle, and an error of the centre moves every marker of
+/// the frame alike, which the rotation between two frames takes for a turn. Frames where the
+/// trajectory and the circle disagree by more than 0.3 px keep their own centre.
+fn relift_on_trajectories(
+    obs: &[FrameObs],
+    views: &[View],
+    fits: &Fits,
+    ph: &[Vec<usize>; 4],
+    split: f64,
+    g: f64,
+    radii: [f64; 2],
+) -> Vec<FrameObs> {
+    let mut out = obs.to_vec();
+    for (k, frames) in ph.iter().enumerate() {
+        let s = k % 2;
+        if fits[k].axes.iter().any(|a| a.is_none()) {
+            continue;
+        }
+        for &i in frames {
+            let Some(f) = out.get_mut(i) else { continue };
+            let (p, _) = kinematics::pos_vel(&fits[k], f.time_s - split, g);
+            for (vi, view) in views.iter().enumerate() {
+                let Some(m) = f.spheres[s][vi].as_mut() else {
+                    continue;
+                };
+                let c = view.project(&p);
+                if (c[0] - m.centre_px[0]).hypot(c[1] - m.centre_px[1]) > 0.3 {
+                    continue;
+                }
+                m.markers = m
+                    .markers
+                    .iter()
+                    .filter_map(|mk| markers::lift(view, mk.centre_px, c, radii[s]))
+                    .collect();
+            }
+        }
+    }
+    out
+}
+
 /// Drops a world axis from all four fits unless every one of them measured it, and says which
 /// axes went. A coordinate that no view saw for one sphere in one phase (in the mirror the two
 /// spheres can hide each other from the impact to the end of the recording) must not enter the
@@ -437,8 +479,9 @@ pub fn analyze_observations(
     // Spins, one constant vector per sphere and flight phase.
     let method = cfg.analysis.rotation;
     let ph = phases(&obs, split, 0.5 * period);
+    let obs_spin = relift_on_trajectories(&obs, &views, &fits, &ph, split, g, radii);
     let measured: Vec<spin::SpinMeasurement> = (0..4)
-        .map(|k| spin::measure(&obs, &ph[k], k % 2, method))
+        .map(|k| spin::measure(&obs_spin, &ph[k], k % 2, method))
         .collect();
     let phase_names = ["a before", "b before", "a after", "b after"];
     let missing: Vec<&str> = (0..4)
@@ -870,4 +913,30 @@ fn calibrate_mirror(obs: &[FrameObs], views: &mut [View]) -> Option<Calibration>
         residual_mean_mm_after: mean_after,
         residual_rms_mm_after: rms_after,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_axis_missing_in_one_phase_is_dropped_from_all_four() {
+        let times: Vec<f64> = (0..10).map(|k| k as f64 * 1e-3).collect();
+        let line = |v: f64| -> kinematics::Series { times.iter().map(|&t| (t, v * t)).collect() };
+        let full = [line(100.0), line(-200.0), line(5.0)];
+        let no_z = [line(100.0), line(-200.0), Vec::new()];
+        let mut fits: Fits = [
+            SideFit::fit(&full, 0.0, 0.0),
+            SideFit::fit(&full, 0.0, 0.0),
+            SideFit::fit(&no_z, 0.0, 0.0),
+            SideFit::fit(&full, 0.0, 0.0),
+        ];
+        assert!(fits[0].axes[2].is_some());
+        assert_eq!(keep_common_axes(&mut fits), vec![2]);
+        assert!(fits
+            .iter()
+            .all(|f| f.axes[2].is_none() && f.axes[0].is_some()));
+        // Nothing to drop when every phase has every axis it had.
+        assert!(keep_common_axes(&mut fits).is_empty());
+    }
 }
