@@ -57,6 +57,32 @@ fn quick_sweep_meets_the_accuracy_goals_and_beats_the_thesis() {
         stats(&rot),
         stats(&rot_thesis)
     );
+    // The goal is 0.5° on the full sweep (docs/accuracy.md); four experiments scatter more.
+    // Before the markers' shading, coverage and foreshortening were fixed the median was 0.69°.
+    assert!(
+        stats(&rot).unwrap().0 <= 0.6,
+        "rotation per pair {:?}",
+        stats(&rot)
+    );
+    // Dot centres unbiased from the middle of the disc to the limb (they were pulled 0.05 px
+    // inwards near the limb and pushed 0.04 px outwards near the middle).
+    let markers: Vec<(f64, f64, f64)> = results
+        .iter()
+        .flat_map(|(_, r)| r.marker_err_px.iter().copied())
+        .collect();
+    for (lo, hi) in [(0.0, 0.4), (0.4, 0.8)] {
+        let radial: Vec<f64> = markers
+            .iter()
+            .filter(|m| m.0 >= lo && m.0 < hi)
+            .map(|m| m.2)
+            .collect();
+        let mean = radial.iter().sum::<f64>() / radial.len().max(1) as f64;
+        assert!(
+            radial.len() > 100 && mean.abs() < 0.025,
+            "dots at ρ/R {lo}–{hi}: mean radial error {mean:+.3} px over {}",
+            radial.len()
+        );
+    }
     let thesis_e = all(&|r| r.thesis_e.into_iter().collect());
     assert!(stats(&thesis_e).unwrap().0 > stats(&e).unwrap().0);
 }

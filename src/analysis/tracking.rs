@@ -98,12 +98,52 @@ pub fn measure_all(
                     };
                     let fits =
                         split_pair(&img, view, blobs[0].centroid, r_fit, lv.background, lv.peak);
-                    let predicted = [0, 1].map(|s| memory[vi].predict(s, t, max_gap_s));
-                    let labels = label_split(&fits, view, primary_x, predicted, r_mean);
+                    // Only recent evidence: x extrapolated over many frames, or a position
+                    // predicted across the collision's kink, can swap two spheres that pass
+                    // each other.
+                    let recent = 3.0 / source.source().frame_rate_hz;
+                    let fresh_x = [0, 1].map(|s| {
+                        spheres[s][0]
+                            .as_ref()
+                            .map(|m| world_x(&views[0], m.centre_px))
+                            .or_else(|| extrapolate(&x_history[s], t, recent))
+                    });
+                    let predicted = [0, 1].map(|s| memory[vi].predict(s, t, recent));
+                    let labels = label_split(&fits, view, fresh_x, predicted, r_mean);
                     if labels.iter().any(|l| l.is_some()) {
+                        // The sphere nearer this view's camera, as the primary view places them
+                        // along this view's line of sight: all of its disc is its own, so its
+                        // dots are its own too. The other's dots near the overlap may be either.
+                        let fi = view.facing.iamax();
+                        let depth = |s: usize| -> Option<f64> {
+                            let m = spheres[s][0].as_ref()?;
+                            views[0]
+                                .unproject(m.centre_px)
+                                .iter()
+                                .find(|(axis, _)| *axis == fi)
+                                .map(|(_, x)| x * view.facing[fi])
+                        };
+                        let front = match (depth(0), depth(1)) {
+                            (Some(da), Some(db)) if (da - db).abs() > 0.5 * contact_mm => {
+                                Some(if da > db { 0 } else { 1 })
+                            }
+                            _ => None,
+                        };
                         for (s, f) in labels.iter().enumerate() {
                             match f {
                                 Some(f) => {
+                                    let dots = if front == Some(s) {
+                                        markers::find(
+                                            &img,
+                                            view,
+                                            f,
+                                            cfg.spheres.sphere(s).0 / 2.0,
+                                            cfg.analysis.marker_diameter_mm,
+                                            lv.noise_sigma,
+                                        )
+                                    } else {
+                                        Vec::new()
+                                    };
                                     spheres[s][vi] = Some(Measurement {
                                         centre_px: f.centre,
                                         // The thesis baseline would click this disc's
@@ -111,8 +151,7 @@ pub fn measure_all(
                                         blob_centroid_px: f.centre,
                                         sigma_px: f.centre_sigma,
                                         diameter_px: 2.0 * f.radius,
-                                        // Dots near the overlap may belong to either sphere.
-                                        markers: Vec::new(),
+                                        markers: dots,
                                     });
                                     memory[vi].last[s] = Some(f.centre);
                                     memory[vi].history[s].push((t, f.centre));
@@ -290,10 +329,10 @@ pub fn measure_all(
     Ok((out, unmeasured))
 }
 
-/// Labels the circles found in one silhouette holding both spheres: by world x against the x
-/// the primary view measured for a and b, when that tells them apart by more than 0.3 mm
-/// (fifteen times the x error of either); else by the positions this view predicts from its
-/// own recent frames, when those differ by more than half a radius. Otherwise neither.
+/// Labels the circles found in one silhouette holding both spheres: by the positions this view
+/// predicts from its own last frames, when those tell them apart by more than half a radius;
+/// else by world x against the x the primary view measured for a and b, when that tells them
+/// apart by more than 0.3 mm (fifteen times the x error of either). Otherwise neither.
 fn label_split<'a>(
     fits: &'a [CircleFit],
     view: &View,
@@ -316,8 +355,8 @@ fn label_split<'a>(
             let sum = |c: &dyn Fn(&CircleFit, usize) -> Option<f64>,
                        f0: &CircleFit,
                        f1: &CircleFit| { Some(c(f0, 0)? + c(f1, 1)?) };
-            let straight_first = decide(sum(&by_x, p, q), sum(&by_x, q, p), X_MARGIN_MM)
-                .or_else(|| decide(sum(&by_px, p, q), sum(&by_px, q, p), 0.5 * radius_px));
+            let straight_first = decide(sum(&by_px, p, q), sum(&by_px, q, p), 0.5 * radius_px)
+                .or_else(|| decide(sum(&by_x, p, q), sum(&by_x, q, p), X_MARGIN_MM));
             match straight_first {
                 Some(true) => [Some(p), Some(q)],
                 Some(false) => [Some(q), Some(p)],
@@ -325,8 +364,8 @@ fn label_split<'a>(
             }
         }
         [p] => {
-            let is_a = decide(by_x(p, 0), by_x(p, 1), X_MARGIN_MM)
-                .or_else(|| decide(by_px(p, 0), by_px(p, 1), 0.5 * radius_px));
+            let is_a = decide(by_px(p, 0), by_px(p, 1), 0.5 * radius_px)
+                .or_else(|| decide(by_x(p, 0), by_x(p, 1), X_MARGIN_MM));
             match is_a {
                 Some(true) => [Some(p), None],
                 Some(false) => [None, Some(p)],
