@@ -92,6 +92,11 @@ pub fn soak(experiments: usize, dir: &std::path::Path) -> Result<String, String>
                     _ => return Err(format!("experiment {id} ended without a report: {v}")),
                 }
             }
+            if k == 0 || k + 1 == experiments {
+                // Let the daemon close the connection that just answered, so it is not
+                // counted as a descriptor held.
+                std::thread::sleep(Duration::from_millis(200));
+            }
             let fig = proc_figures(child.id());
             if k == 0 {
                 first = Some(fig);
