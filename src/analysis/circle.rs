@@ -18,6 +18,8 @@ pub struct CircleFit {
     pub rms_px: f64,
     pub points_used: usize,
     pub points_total: usize,
+    /// 10° sectors (of 36) the points used go round (`sectors_covered`).
+    pub arc_sectors: usize,
 }
 
 /// Algebraic circle fit with Taubin's constraint (Chernov's Newton-based implementation).
@@ -159,6 +161,7 @@ pub fn robust_fit(points: &[[f64; 2]], oversampling: f64) -> Option<CircleFit> {
         rms_px: s2.sqrt(),
         points_used: keep.len(),
         points_total: points.len(),
+        arc_sectors: sectors_covered(&keep, c),
     })
 }
 
@@ -224,6 +227,18 @@ pub fn edge_points(
     pts
 }
 
+/// How much of a circle its edge points go round: the number of 10° sectors (of 36) that hold
+/// at least one. A partial arc fixes the centre well only across its chord.
+pub fn sectors_covered(points: &[[f64; 2]], centre: [f64; 2]) -> usize {
+    let mut sectors = [false; 36];
+    for x in points {
+        let a = (x[1] - centre[1]).atan2(x[0] - centre[0]);
+        let k = ((a + std::f64::consts::PI) / std::f64::consts::TAU * 36.0) as usize;
+        sectors[k.min(35)] = true;
+    }
+    sectors.iter().filter(|s| **s).count()
+}
+
 /// Edge points closer than this to the other sphere's disc are not used: in the narrow gap
 /// between two spheres the background never reaches its level (both rims' blur and the motion
 /// smear add up), so the edge there moves outwards and pulls the centre towards the other
@@ -247,13 +262,15 @@ pub fn refine(
     let mut rim: Vec<f64> = (0..rays)
         .filter_map(|k| {
             let a = std::f64::consts::TAU * k as f64 / rays as f64;
-            img.sample(
+            let (u, v) = (
                 rough[0] + (radius_px - 1.5) * a.cos(),
                 rough[1] + (radius_px - 1.5) * a.sin(),
-            )
+            );
+            // Beyond the view's border the frame shows another view.
+            view.contains(u, v).then(|| img.sample(u, v)).flatten()
         })
         .collect();
-    if rim.len() < rays / 2 {
+    if rim.len() < rays / 4 {
         return None;
     }
     rim.sort_by(f64::total_cmp);
@@ -339,6 +356,7 @@ pub fn fit_fixed_radius(
             rms_px: s2.sqrt(),
             points_used: keep.len(),
             points_total: points.len(),
+            arc_sectors: sectors_covered(&keep, c),
         });
         let limit = (3.0 * s2.sqrt()).max(0.1);
         let before = keep.len();
@@ -471,14 +489,8 @@ pub fn split_pair(
             ((x[0] - fit.centre[0]).hypot(x[1] - fit.centre[1]) - fit.radius).abs() >= tol
         });
         // A short arc fixes the centre well only across its chord: at least half the circle
-        // must be seen (36 sectors of 10°).
-        let mut sectors = [false; 36];
-        for x in &mine {
-            let a = (x[1] - fit.centre[1]).atan2(x[0] - fit.centre[0]);
-            let k = ((a + std::f64::consts::PI) / std::f64::consts::TAU * 36.0) as usize;
-            sectors[k.min(35)] = true;
-        }
-        if sectors.iter().filter(|s| **s).count() < 18 {
+        // must be seen.
+        if sectors_covered(&mine, fit.centre) < 18 {
             continue;
         }
         out.push(fit);

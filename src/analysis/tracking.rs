@@ -3,7 +3,7 @@
 //! the report contract says). What cannot be measured is listed with the reason.
 
 use super::circle::{refine, split_pair, CircleFit};
-use super::detect::{find_blobs, levels, Blob};
+use super::detect::{find_blobs, levels, Blob, ViewLevels};
 use super::geometry::View;
 use super::image::GreyImage;
 use super::markers::{self, MarkerObs};
@@ -60,6 +60,7 @@ pub fn measure_all(
         source.read(i, &mut img)?;
         let mut spheres: [Vec<Option<Measurement>>; 2] =
             [vec![None; views.len()], vec![None; views.len()]];
+        let mut deferred: Option<(Blob, ViewLevels)> = None;
         for (vi, view) in views.iter().enumerate() {
             let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
             let r_mean = 0.5 * (radius[0] + radius[1]);
@@ -211,7 +212,7 @@ pub fn measure_all(
             if let [only] = blobs.as_slice() {
                 let reason = if only.merged {
                     Some("a, b: silhouettes merged")
-                } else if assigned.iter().all(|a| a.is_none()) {
+                } else if assigned.iter().all(|a| a.is_none()) && vi > 0 {
                     Some("one sphere seen and no earlier frame to tell whether it is a or b")
                 } else {
                     None
@@ -224,68 +225,29 @@ pub fn measure_all(
                     });
                 }
             }
+            // The primary view's first frames with one sphere only: which one it is, the
+            // secondary view (processed next) can tell by x.
+            if vi == 0
+                && blobs.len() == 1
+                && !blobs[0].merged
+                && assigned.iter().all(|x| x.is_none())
+            {
+                deferred = Some((blobs[0].clone(), lv));
+            }
             for (s, blob) in assigned.iter().enumerate() {
                 let Some(b) = blob else { continue };
-                let why = if b.merged {
-                    Some("silhouettes of a and b merged")
-                } else if b.clipped {
-                    Some("sphere clipped by the view border")
-                } else {
-                    None
-                };
-                if let Some(reason) = why {
-                    unmeasured.push(Unmeasured {
-                        frame: i as u64,
-                        view: view.kind.name().into(),
-                        reason: format!("{}: {reason}", ["a", "b"][s]),
-                    });
-                    continue;
-                }
                 let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
-                match refine(&img, view, b.centroid, radius[s], lv.background, other) {
-                    // A silhouette partly hidden by, or touching, the other sphere is not one
-                    // circle: its fit is too large or rests on too few of its edge points.
-                    Some(f)
-                        if (f.radius - radius[s]).abs() > (0.1 * radius[s]).max(0.7)
-                            || (f.points_used as f64) < 0.6 * f.points_total as f64 =>
-                    {
-                        unmeasured.push(Unmeasured {
-                            frame: i as u64,
-                            view: view.kind.name().into(),
-                            reason: format!(
-                                "{}: silhouette is not one circle (fit radius {:.2} px, expected {:.2} px; {} of {} edge points agree)",
-                                ["a", "b"][s],
-                                f.radius,
-                                radius[s],
-                                f.points_used,
-                                f.points_total
-                            ),
-                        });
-                    }
-                    Some(f) => {
-                        let radius_mm = cfg.spheres.sphere(s).0 / 2.0;
-                        spheres[s][vi] = Some(Measurement {
-                            centre_px: f.centre,
-                            blob_centroid_px: b.centroid,
-                            sigma_px: f.centre_sigma,
-                            diameter_px: 2.0 * f.radius,
-                            markers: markers::find(
-                                &img,
-                                view,
-                                &f,
-                                radius_mm,
-                                cfg.analysis.marker_diameter_mm,
-                                lv.noise_sigma,
-                            ),
-                        });
+                match measure_blob(&img, view, b, s, radius[s], other, &lv, cfg) {
+                    Ok((m, f)) => {
+                        spheres[s][vi] = Some(m);
                         memory[vi].last[s] = Some(f.centre);
                         memory[vi].radius[s] = Some(f.radius);
                         memory[vi].history[s].push((meta.timestamp_ns as f64 * 1e-9, f.centre));
                     }
-                    None => unmeasured.push(Unmeasured {
+                    Err(reason) => unmeasured.push(Unmeasured {
                         frame: i as u64,
                         view: view.kind.name().into(),
-                        reason: format!("{}: too few edge points for a circle fit", ["a", "b"][s]),
+                        reason,
                     }),
                 }
             }
@@ -298,6 +260,48 @@ pub fn measure_all(
                         blobs.len()
                     ),
                 });
+            }
+        }
+        if let Some((blob, lv)) = deferred.take() {
+            let view = &views[0];
+            let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
+            let contact_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
+            // x of a and b as the secondary view measured them in this frame; a sphere it
+            // did not measure matches nothing.
+            let x = [0, 1].map(|s| {
+                (1..views.len()).find_map(|vj| {
+                    spheres[s][vj]
+                        .as_ref()
+                        .map(|m| world_x(&views[vj], m.centre_px))
+                })
+            });
+            let both = x[0]
+                .zip(x[1])
+                .is_some_and(|(xa, xb)| (xa - xb).abs() > contact_mm);
+            let labels = if both {
+                assign_by_x(std::slice::from_ref(&blob), view, x, contact_mm)
+            } else {
+                [None, None]
+            };
+            match labels.iter().position(|l| l.is_some()) {
+                Some(s) => match measure_blob(&img, view, &blob, s, radius[s], None, &lv, cfg) {
+                    Ok((m, f)) => {
+                        spheres[s][0] = Some(m);
+                        memory[0].last[s] = Some(f.centre);
+                        memory[0].radius[s] = Some(f.radius);
+                        memory[0].history[s].push((meta.timestamp_ns as f64 * 1e-9, f.centre));
+                    }
+                    Err(reason) => unmeasured.push(Unmeasured {
+                        frame: i as u64,
+                        view: view.kind.name().into(),
+                        reason,
+                    }),
+                },
+                None => unmeasured.push(Unmeasured {
+                    frame: i as u64,
+                    view: view.kind.name().into(),
+                    reason: "one sphere seen and no earlier frame, nor the other view, tells whether it is a or b".into(),
+                }),
             }
         }
         for (s, hist) in x_history.iter_mut().enumerate() {
@@ -327,6 +331,67 @@ pub fn measure_all(
         progress(i + 1, n);
     }
     Ok((out, unmeasured))
+}
+
+/// One sphere's measurement from its blob: the circle fit, its gates, and the dots inside.
+#[allow(clippy::too_many_arguments)]
+fn measure_blob(
+    img: &GreyImage,
+    view: &View,
+    b: &Blob,
+    s: usize,
+    radius_px: f64,
+    other: Option<([f64; 2], f64)>,
+    lv: &ViewLevels,
+    cfg: &Config,
+) -> Result<(Measurement, CircleFit), String> {
+    let name = ["a", "b"][s];
+    if b.merged {
+        return Err(format!("{name}: silhouettes of a and b merged"));
+    }
+    let Some(f) = refine(img, view, b.centroid, radius_px, lv.background, other) else {
+        return Err(format!("{name}: too few edge points for a circle fit"));
+    };
+    // A sphere partly beyond the view's border is fitted on its visible arc, and kept if that
+    // arc is at least half the circle (fast spheres cross a view in a dozen frames; the ones at
+    // its edges lengthen the trajectory).
+    if b.clipped && f.arc_sectors < 18 {
+        return Err(format!(
+            "{name}: sphere clipped by the view border (visible arc {}°, need 180°)",
+            f.arc_sectors * 10
+        ));
+    }
+    // A silhouette partly hidden by, or touching, the other sphere is not one circle: its fit
+    // is too large or rests on too few of its edge points.
+    if (f.radius - radius_px).abs() > (0.1 * radius_px).max(0.7)
+        || (f.points_used as f64) < 0.6 * f.points_total as f64
+    {
+        return Err(format!(
+            "{name}: silhouette is not one circle (fit radius {:.2} px, expected {:.2} px; {} of {} edge points agree)",
+            f.radius, radius_px, f.points_used, f.points_total
+        ));
+    }
+    let radius_mm = cfg.spheres.sphere(s).0 / 2.0;
+    let m = Measurement {
+        centre_px: f.centre,
+        blob_centroid_px: b.centroid,
+        sigma_px: f.centre_sigma,
+        diameter_px: 2.0 * f.radius,
+        // Beyond the border the frame shows another view: no dots from a clipped disc.
+        markers: if b.clipped {
+            Vec::new()
+        } else {
+            markers::find(
+                img,
+                view,
+                &f,
+                radius_mm,
+                cfg.analysis.marker_diameter_mm,
+                lv.noise_sigma,
+            )
+        },
+    };
+    Ok((m, f))
 }
 
 /// Labels the circles found in one silhouette holding both spheres: by the positions this view
