@@ -240,9 +240,77 @@ fn phases(obs: &[FrameObs], split: f64, guard: f64) -> [Vec<usize>; 4] {
         .map(|(s, pre)| side_frames(obs, s, pre, split, guard))
 }
 
+/// The frames of each phase in which the sphere flies freely: starting from the 15 frames next
+/// to the impact, frames further away are taken one by one while they lie on the ballistic
+/// trajectory fitted so far (within 4σ of its prediction, σ from the residuals and the
+/// extrapolation); three misses in a row end the phase. Before that, a sphere seen still
+/// rolling in its tube (its vertical acceleration there is a fraction of g) bent the fit.
+fn flight_phases(
+    obs: &[FrameObs],
+    views: &[View],
+    split: f64,
+    guard: f64,
+    g: f64,
+) -> [Vec<usize>; 4] {
+    let ph = phases(obs, split, guard);
+    [0, 1, 2, 3].map(|k| free_flight(obs, views, k % 2, &ph[k], k < 2, g))
+}
+
+fn free_flight(
+    obs: &[FrameObs],
+    views: &[View],
+    s: usize,
+    frames: &[usize],
+    pre: bool,
+    g: f64,
+) -> Vec<usize> {
+    const SEED: usize = 15;
+    if frames.len() <= SEED + 2 {
+        return frames.to_vec();
+    }
+    let order: Vec<usize> = if pre {
+        frames.iter().rev().copied().collect()
+    } else {
+        frames.to_vec()
+    };
+    let t_ref = obs[order[0]].time_s;
+    let gravity = [0.0, -g, 0.0];
+    let mut kept: Vec<usize> = order[..SEED].to_vec();
+    let mut fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g);
+    let mut misses = 0;
+    for &k in &order[SEED..] {
+        let one = series(obs, views, s, &[k]);
+        let tau = obs[k].time_s - t_ref;
+        let on_track = (0..3).all(|axis| {
+            let Some(l) = &fit.axes[axis] else {
+                return true;
+            };
+            one[axis].iter().all(|&(_, x)| {
+                let predicted = l.p0 + l.v * tau + 0.5 * gravity[axis] * tau * tau;
+                let extrapolation =
+                    l.cov[(0, 0)] + 2.0 * tau * l.cov[(0, 1)] + tau * tau * l.cov[(1, 1)];
+                let sigma = (l.rms * l.rms + extrapolation.max(0.0)).sqrt().max(0.005);
+                (x - predicted).abs() <= 4.0 * sigma
+            })
+        });
+        if on_track {
+            kept.push(k);
+            misses = 0;
+            fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g);
+        } else {
+            misses += 1;
+            if misses >= 3 {
+                break;
+            }
+        }
+    }
+    kept.sort_unstable();
+    kept
+}
+
 /// The four ballistic fits for a given split.
 fn fit_all(obs: &[FrameObs], views: &[View], t_ref: f64, split: f64, guard: f64, g: f64) -> Fits {
-    let ph = phases(obs, split, guard);
+    let ph = flight_phases(obs, views, split, guard, g);
     let mut fits = [0, 1, 2, 3].map(|k| SideFit::fit(&series(obs, views, k % 2, &ph[k]), t_ref, g));
     keep_common_axes(&mut fits);
     fits
@@ -314,9 +382,10 @@ fn phases_missing_axis(
     views: &[View],
     split: f64,
     guard: f64,
+    g: f64,
     i: usize,
 ) -> Vec<&'static str> {
-    let ph = phases(obs, split, guard);
+    let ph = flight_phases(obs, views, split, guard, g);
     let names = ["a before", "b before", "a after", "b after"];
     (0..4)
         .filter(|&k| series(obs, views, k % 2, &ph[k])[i].is_empty())
@@ -478,7 +547,7 @@ pub fn analyze_observations(
 
     // Spins, one constant vector per sphere and flight phase.
     let method = cfg.analysis.rotation;
-    let ph = phases(&obs, split, 0.5 * period);
+    let ph = flight_phases(&obs, &views, split, 0.5 * period, g);
     let obs_spin = relift_on_trajectories(&obs, &views, &fits, &ph, split, g, radii);
     let measured: Vec<spin::SpinMeasurement> = (0..4)
         .map(|k| spin::measure(&obs_spin, &ph[k], k % 2, method))
@@ -548,7 +617,7 @@ pub fn analyze_observations(
         ));
     }
     for &i in &lost_axes {
-        let missing = phases_missing_axis(&obs, &views, split, 0.5 * period, i);
+        let missing = phases_missing_axis(&obs, &views, split, 0.5 * period, g, i);
         warnings.push(format!(
             "{} was not measured for sphere {} the impact (in the mirror view the spheres hide each other): results are 2-D, without {}",
             ["x", "y", "z"][i],
@@ -938,5 +1007,52 @@ mod tests {
             .all(|f| f.axes[2].is_none() && f.axes[0].is_some()));
         // Nothing to drop when every phase has every axis it had.
         assert!(keep_common_axes(&mut fits).is_empty());
+    }
+
+    /// A sphere seen rolling down its tube (vertical acceleration a fifth of g) for 30 frames,
+    /// then flying for 40 before the impact: only the flight is kept for the fit.
+    #[test]
+    fn frames_still_in_the_tube_are_left_out_of_the_flight() {
+        use crate::analysis::tracking::Measurement;
+        let cfg = Config::default_config();
+        let views = geometry::views(&cfg);
+        let g = cfg.analysis.gravity_mm_s2;
+        let dt = 1e-3;
+        let exit = 30;
+        // Positions and velocities at the tube exit, then ballistic.
+        let (p_exit, v_exit) = (V3::new(-40.0, 20.0, 0.0), V3::new(400.0, -300.0, 0.0));
+        let obs: Vec<FrameObs> = (0..70)
+            .map(|k| {
+                let tau = (k as f64 - exit as f64) * dt;
+                let a = if k < exit { 0.2 * g } else { g };
+                let p = p_exit + v_exit * tau + V3::new(0.0, -0.5 * a * tau * tau, 0.0);
+                let m = |vi: usize| {
+                    Some(Measurement {
+                        centre_px: views[vi].project(&p),
+                        blob_centroid_px: views[vi].project(&p),
+                        sigma_px: [0.02, 0.02],
+                        diameter_px: 13.7,
+                        markers: Vec::new(),
+                    })
+                };
+                FrameObs {
+                    index: k as u64,
+                    frame_id: k as u64,
+                    time_s: k as f64 * dt,
+                    spheres: [vec![m(0), m(1)], vec![None, None]],
+                }
+            })
+            .collect();
+        let all: Vec<usize> = (0..70).collect();
+        let kept = free_flight(&obs, &views, 0, &all, true, g);
+        assert!(
+            kept.first()
+                .is_some_and(|&f| (exit - 2..=exit + 1).contains(&f))
+                && kept.len() >= 38,
+            "kept frames {:?}..{:?} ({})",
+            kept.first(),
+            kept.last(),
+            kept.len()
+        );
     }
 }

@@ -60,6 +60,7 @@ pub fn measure_all(
         source.read(i, &mut img)?;
         let mut spheres: [Vec<Option<Measurement>>; 2] =
             [vec![None; views.len()], vec![None; views.len()]];
+        let mut deferred: Option<(Blob, ViewLevels)> = None;
         for (vi, view) in views.iter().enumerate() {
             let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
             let r_mean = 0.5 * (radius[0] + radius[1]);
@@ -211,7 +212,7 @@ pub fn measure_all(
             if let [only] = blobs.as_slice() {
                 let reason = if only.merged {
                     Some("a, b: silhouettes merged")
-                } else if assigned.iter().all(|a| a.is_none()) {
+                } else if assigned.iter().all(|a| a.is_none()) && vi > 0 {
                     Some("one sphere seen and no earlier frame to tell whether it is a or b")
                 } else {
                     None
@@ -223,6 +224,15 @@ pub fn measure_all(
                         reason: reason.into(),
                     });
                 }
+            }
+            // The primary view's first frames with one sphere only: which one it is, the
+            // secondary view (processed next) can tell by x.
+            if vi == 0
+                && blobs.len() == 1
+                && !blobs[0].merged
+                && assigned.iter().all(|x| x.is_none())
+            {
+                deferred = Some((blobs[0].clone(), lv));
             }
             for (s, blob) in assigned.iter().enumerate() {
                 let Some(b) = blob else { continue };
@@ -250,6 +260,48 @@ pub fn measure_all(
                         blobs.len()
                     ),
                 });
+            }
+        }
+        if let Some((blob, lv)) = deferred.take() {
+            let view = &views[0];
+            let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
+            let contact_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
+            // x of a and b as the secondary view measured them in this frame; a sphere it
+            // did not measure matches nothing.
+            let x = [0, 1].map(|s| {
+                (1..views.len()).find_map(|vj| {
+                    spheres[s][vj]
+                        .as_ref()
+                        .map(|m| world_x(&views[vj], m.centre_px))
+                })
+            });
+            let both = x[0]
+                .zip(x[1])
+                .is_some_and(|(xa, xb)| (xa - xb).abs() > contact_mm);
+            let labels = if both {
+                assign_by_x(std::slice::from_ref(&blob), view, x, contact_mm)
+            } else {
+                [None, None]
+            };
+            match labels.iter().position(|l| l.is_some()) {
+                Some(s) => match measure_blob(&img, view, &blob, s, radius[s], None, &lv, cfg) {
+                    Ok((m, f)) => {
+                        spheres[s][0] = Some(m);
+                        memory[0].last[s] = Some(f.centre);
+                        memory[0].radius[s] = Some(f.radius);
+                        memory[0].history[s].push((meta.timestamp_ns as f64 * 1e-9, f.centre));
+                    }
+                    Err(reason) => unmeasured.push(Unmeasured {
+                        frame: i as u64,
+                        view: view.kind.name().into(),
+                        reason,
+                    }),
+                },
+                None => unmeasured.push(Unmeasured {
+                    frame: i as u64,
+                    view: view.kind.name().into(),
+                    reason: "one sphere seen and no earlier frame, nor the other view, tells whether it is a or b".into(),
+                }),
             }
         }
         for (s, hist) in x_history.iter_mut().enumerate() {
@@ -297,16 +349,19 @@ fn measure_blob(
     if b.merged {
         return Err(format!("{name}: silhouettes of a and b merged"));
     }
-    // Not fitted on its visible arc: where a view's border cuts a sphere may be where it is
-    // still in its tube, rolling, and those frames would bend a ballistic fit. (Nothing yet
-    // tests for free flight; measuring clipped discs, and a lone sphere's first frames by the
-    // mirror's x, let tube frames in at 10° and spoiled e.)
-    if b.clipped {
-        return Err(format!("{name}: sphere clipped by the view border"));
-    }
     let Some(f) = refine(img, view, b.centroid, radius_px, lv.background, other) else {
         return Err(format!("{name}: too few edge points for a circle fit"));
     };
+    // A sphere partly beyond the view's border is fitted on its visible arc, and kept if that
+    // arc is at least half the circle: fast spheres cross a view in a dozen frames, and the
+    // ones at its edges lengthen the trajectory. (Whether the sphere flies freely there is the
+    // fits' business: `flight_phases`.)
+    if b.clipped && f.arc_sectors < 18 {
+        return Err(format!(
+            "{name}: sphere clipped by the view border (visible arc {}°, need 180°)",
+            f.arc_sectors * 10
+        ));
+    }
     // A silhouette partly hidden by, or touching, the other sphere is not one circle: its fit
     // is too large or rests on too few of its edge points.
     if (f.radius - radius_px).abs() > (0.1 * radius_px).max(0.7)
@@ -323,14 +378,19 @@ fn measure_blob(
         blob_centroid_px: b.centroid,
         sigma_px: f.centre_sigma,
         diameter_px: 2.0 * f.radius,
-        markers: markers::find(
-            img,
-            view,
-            &f,
-            radius_mm,
-            cfg.analysis.marker_diameter_mm,
-            lv.noise_sigma,
-        ),
+        // Beyond the border the frame shows another view: no dots from a clipped disc.
+        markers: if b.clipped {
+            Vec::new()
+        } else {
+            markers::find(
+                img,
+                view,
+                &f,
+                radius_mm,
+                cfg.analysis.marker_diameter_mm,
+                lv.noise_sigma,
+            )
+        },
     };
     Ok((m, f))
 }
