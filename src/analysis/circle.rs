@@ -554,25 +554,7 @@ mod tests {
             .iter()
             .enumerate()
         {
-            let scene = hw_sim::Scene {
-                width: 80,
-                height: 64,
-                frame_rate_hz: 1000.0,
-                bit_depth: 8,
-                views: vec![hw_sim::ViewSpec {
-                    name: "direct".into(),
-                    region: g.region,
-                    px_per_mm: g.px_per_mm,
-                    origin_px: g.origin_px,
-                    u_axis: view.u_axis.into(),
-                    v_axis: view.v_axis.into(),
-                    facing: view.facing.into(),
-                }],
-                spheres: [0, 1].map(|_| hw_sim::SphereSpec {
-                    diameter_mm: 6.35,
-                    mass_g: 1.0,
-                }),
-            };
+            let scene = crate::analysis::geometry::one_view_scene(&view, 80, 64);
             let cfg = hw_sim::LabConfig {
                 markers_per_sphere: 0,
                 ..Default::default()

@@ -103,8 +103,9 @@ pub fn views(cfg: &Config) -> Vec<View> {
 }
 
 /// The rig as the simulator needs it, from the same geometry the analysis uses.
-pub fn sim_scene(cfg: &Config) -> hw_sim::Scene {
-    let spec = |v: &View| hw_sim::ViewSpec {
+/// One view as the simulator describes it.
+pub fn sim_view(v: &View) -> hw_sim::ViewSpec {
+    hw_sim::ViewSpec {
         name: v.kind.name().into(),
         region: v.region,
         px_per_mm: v.px_per_mm,
@@ -112,7 +113,27 @@ pub fn sim_scene(cfg: &Config) -> hw_sim::Scene {
         u_axis: v.u_axis.into(),
         v_axis: v.v_axis.into(),
         facing: v.facing.into(),
-    };
+    }
+}
+
+/// A scene of one view and two 6.35 mm spheres, for tests that render still spheres.
+#[cfg(test)]
+pub fn one_view_scene(view: &View, width: u32, height: u32) -> hw_sim::Scene {
+    hw_sim::Scene {
+        width,
+        height,
+        frame_rate_hz: 1000.0,
+        bit_depth: 8,
+        views: vec![sim_view(view)],
+        spheres: [0, 1].map(|_| hw_sim::SphereSpec {
+            diameter_mm: 6.35,
+            mass_g: 1.0,
+        }),
+    }
+}
+
+pub fn sim_scene(cfg: &Config) -> hw_sim::Scene {
+    let spec = sim_view;
     let sphere = |i| {
         let (d, m) = cfg.spheres.sphere(i);
         hw_sim::SphereSpec {

@@ -321,31 +321,7 @@ mod tests {
             v_axis: "-y".into(),
         };
         let view = View::from_config(ViewKind::Direct, &g);
-        let scene = hw_sim::Scene {
-            width: 64,
-            height: 64,
-            frame_rate_hz: 1000.0,
-            bit_depth: 8,
-            views: vec![hw_sim::ViewSpec {
-                name: "direct".into(),
-                region: g.region,
-                px_per_mm: g.px_per_mm,
-                origin_px: g.origin_px,
-                u_axis: view.u_axis.into(),
-                v_axis: view.v_axis.into(),
-                facing: view.facing.into(),
-            }],
-            spheres: [
-                hw_sim::SphereSpec {
-                    diameter_mm: 6.35,
-                    mass_g: 1.0,
-                },
-                hw_sim::SphereSpec {
-                    diameter_mm: 6.35,
-                    mass_g: 1.0,
-                },
-            ],
-        };
+        let scene = crate::analysis::geometry::one_view_scene(&view, 64, 64);
         let cfg = hw_sim::LabConfig {
             noise_sigma_grey: noise,
             ..Default::default()
