@@ -631,7 +631,7 @@ pub fn analyze_observations(
             "{dropped} frame(s) were dropped by the camera (gaps in frame ids)"
         ));
     }
-    let dt_check = (d.tau_intersection - d.tau_c).abs();
+    let dt_check = (d.tau_intersection - d.tau_contact_distance).abs();
     if dt_check > 2.0 * period {
         warnings.push(format!(
             "impact time from contact distance and from the trajectory intersection differ by {:.3} ms: check spheres.diameter_mm and px_per_mm",
