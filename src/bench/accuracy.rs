@@ -417,12 +417,23 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
     }
     let _ = writeln!(
         s,
-        "\nper experiment (estimate − truth; centre: worst frame):"
+        "\nper experiment (estimate − truth; velocity: worst phase, % of |v|; centre: worst frame):"
     );
     let _ = writeln!(
         s,
-        "{:>6} {:>6} {:>4} {:>9} {:>7} {:>8} {:>7} {:>8} {:>8} {:>8} {:>9}",
-        "tube°", "offset", "σ", "size", "ψ1 true", "Δe", "σ(e)", "Δψ1", "Δψ2", "Δβ", "centre px"
+        "{:>6} {:>6} {:>4} {:>9} {:>7} {:>8} {:>7} {:>8} {:>8} {:>8} {:>7} {:>9}",
+        "tube°",
+        "offset",
+        "σ",
+        "size",
+        "ψ1 true",
+        "Δe",
+        "σ(e)",
+        "Δψ1",
+        "Δψ2",
+        "Δβ",
+        "v %",
+        "centre px"
     );
     for (c, r) in results.iter().filter(|(_, r)| r.failed.is_none()) {
         let f = |x: Option<(f64, f64)>| {
@@ -430,9 +441,10 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
                 .unwrap_or_else(|| format!("{:>8}", "—"))
         };
         let worst = r.centre_err_px.iter().copied().fold(0.0, f64::max);
+        let worst_v = r.vel_rel.iter().copied().fold(0.0, f64::max);
         let _ = writeln!(
             s,
-            "{:>6} {:>6} {:>4} {:>9} {:>7.3} {} {:>7.4} {} {} {} {:>9.3}",
+            "{:>6} {:>6} {:>4} {:>9} {:>7.3} {} {:>7.4} {} {} {} {:>7.3} {:>9.3}",
             c.tube_angle_deg,
             c.impact_offset,
             c.noise_sigma_grey,
@@ -443,6 +455,7 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
             f(r.psi1),
             f(r.psi2),
             f(r.beta),
+            100.0 * worst_v,
             worst
         );
     }
