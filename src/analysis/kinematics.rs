@@ -2,8 +2,8 @@
 //! known, so each axis is a straight-line fit of position minus ½gt²), the impact time and
 //! contact point where the pre and post separation lines meet at contact distance (the
 //! pre-impact root alone and the lines' intersection are kept as cross-checks), the contact
-//! normal there, and e — physics.md §6. Uncertainties are
-//! propagated from the fit covariances through a numerical Jacobian of everything derived.
+//! normal there, and e — physics.md §6. Uncertainties are propagated from the fit covariances
+//! through a numerical Jacobian of everything derived.
 
 use nalgebra::{DMatrix, Matrix2, Matrix3, Vector3};
 
@@ -366,7 +366,8 @@ fn position_variance(f: &SideFit, tau: f64) -> V3 {
 /// The impact time and contact normal that fit both sides at once: the separation lines before
 /// (P) and after (Q) the impact must meet at a point r at contact distance, so (τ, r) minimise
 /// |P(τ) − r|²_A + |Q(τ) − r|²_B with |r| = D, A and B the inverse covariances of the fitted
-/// separations. Why both: in a grazing impact the separation closes at only a quarter of the
+/// separations (r is taken as their weighted mean moved radially onto |r| = D, exact when the
+/// two lines meet). Why both: in a grazing impact the separation closes at only a quarter of the
 /// relative speed, so the contact-distance time alone is four times less certain than the
 /// line's tangential error, and a small error in it turns the normal by |g_t|·δτ/D. A bias in
 /// D moves the two sides' contact times in opposite directions and mostly cancels here.
