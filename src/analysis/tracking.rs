@@ -209,8 +209,32 @@ pub fn measure_all(
                 ),
                 x => assign_by_x(&blobs, view, x, contact_mm),
             };
+            // Two spheres touching in the primary view are one silhouette, in the frames that
+            // fix the contact best. Where this view saw both in the last frames, each is fitted
+            // from where they were heading, with the other's side left out.
+            let mut touching = false;
+            if vi == 0 && blobs.len() == 1 && blobs[0].merged && memory[vi].both_in_previous {
+                let t = meta.timestamp_ns as f64 * 1e-9;
+                let recent = 3.0 / source.source().frame_rate_hz;
+                let predicted = [0, 1].map(|s| memory[vi].predict(s, t, recent));
+                if let [Some(pa), Some(pb)] = predicted {
+                    if let Some(pair) =
+                        measure_touching(&img, view, &blobs[0], [pa, pb], radius, &lv, cfg)
+                    {
+                        for (s, (m, f)) in pair.into_iter().enumerate() {
+                            spheres[s][vi] = Some(m);
+                            memory[vi].last[s] = Some(f.centre);
+                            memory[vi].radius[s] = Some(f.radius);
+                            memory[vi].history[s].push((t, f.centre));
+                        }
+                        touching = true;
+                    }
+                }
+            }
             if let [only] = blobs.as_slice() {
-                let reason = if only.merged {
+                let reason = if touching {
+                    None
+                } else if only.merged {
                     Some("a, b: silhouettes merged")
                 } else if assigned.iter().all(|a| a.is_none()) && vi > 0 {
                     Some("one sphere seen and no earlier frame to tell whether it is a or b")
@@ -393,6 +417,44 @@ fn measure_blob(
         },
     };
     Ok((m, f))
+}
+
+/// Both spheres of one silhouette in which they touch, each fitted from its predicted centre
+/// with the other's side left out (as for two blobs that nearly touch). None unless both fits
+/// land within a pixel of their predictions and no closer together than 95 % of the contact
+/// distance: touching spheres do not overlap, so a pair that does was not measured right.
+fn measure_touching(
+    img: &GreyImage,
+    view: &View,
+    blob: &Blob,
+    predicted: [[f64; 2]; 2],
+    radius_px: [f64; 2],
+    lv: &ViewLevels,
+    cfg: &Config,
+) -> Option<[(Measurement, CircleFit); 2]> {
+    let part = Blob {
+        merged: false,
+        ..blob.clone()
+    };
+    let fit = |s: usize| {
+        let b = Blob {
+            centroid: predicted[s],
+            ..part.clone()
+        };
+        let other = Some((predicted[1 - s], radius_px[1 - s]));
+        measure_blob(img, view, &b, s, radius_px[s], other, lv, cfg).ok()
+    };
+    let (a, b) = (fit(0)?, fit(1)?);
+    for (s, f) in [&a.1, &b.1].iter().enumerate() {
+        if (f.centre[0] - predicted[s][0]).hypot(f.centre[1] - predicted[s][1]) > 1.0 {
+            return None;
+        }
+    }
+    let apart = (a.1.centre[0] - b.1.centre[0]).hypot(a.1.centre[1] - b.1.centre[1]);
+    if apart < 0.95 * (radius_px[0] + radius_px[1]) {
+        return None;
+    }
+    Some([a, b])
 }
 
 /// Labels the circles found in one silhouette holding both spheres: by the positions this view
