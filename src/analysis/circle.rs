@@ -859,58 +859,94 @@ mod tests {
         assert_eq!(f.points_used, 54);
     }
 
+    use crate::analysis::geometry::{ViewKind, V3};
+
+    const SPHERE_RADIUS_MM: f64 = 3.175;
+
+    /// One view filling a `width`×`height` frame, u along +x.
+    fn test_view(
+        kind: ViewKind,
+        width: u32,
+        height: u32,
+        px_per_mm: f64,
+        origin_px: [f64; 2],
+        v_axis: &str,
+    ) -> View {
+        let g = crate::config::ViewGeometry {
+            region: [0, 0, width, height],
+            px_per_mm,
+            origin_px,
+            u_axis: "+x".into(),
+            v_axis: v_axis.into(),
+        };
+        View::from_config(kind, &g)
+    }
+
+    /// Two still spheres without dots, rendered by the simulator: the frame and their true
+    /// centres, px.
+    fn render_pair(
+        view: &View,
+        width: u32,
+        height: u32,
+        centres: [V3; 2],
+        cfg: &hw_sim::LabConfig,
+        seed: u64,
+    ) -> (GreyImage, [[f64; 2]; 2]) {
+        let body = |pos: V3| hw_sim::physics::Body {
+            pos_mm: pos,
+            vel_mm_s: V3::zeros(),
+            spin_rad_s: V3::zeros(),
+            orientation: nalgebra::UnitQuaternion::identity(),
+            radius_mm: SPHERE_RADIUS_MM,
+            mass_g: 1.0,
+        };
+        let state = move |_t: f64| ([body(centres[0]), body(centres[1])], [vec![], vec![]]);
+        let scene = crate::analysis::geometry::one_view_scene(view, width, height);
+        let mut r = hw_sim::render::Renderer::new(scene, cfg.clone(), seed);
+        let mut raw = Vec::new();
+        r.render(0.0, &state, &mut raw);
+        let mut img = GreyImage::new();
+        img.load(&raw, width as usize, height as usize, 1);
+        (img, centres.map(|c| view.project(&c)))
+    }
+
+    /// `split_pair` from the midpoint of the true centres, with the radius a single-sphere fit
+    /// measures at the edge level.
+    fn split_rendered(
+        img: &GreyImage,
+        view: &View,
+        truth: [[f64; 2]; 2],
+        cfg: &hw_sim::LabConfig,
+    ) -> Vec<CircleFit> {
+        let mid = [
+            (truth[0][0] + truth[1][0]) / 2.0,
+            (truth[0][1] + truth[1][1]) / 2.0,
+        ];
+        let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
+        split_pair(
+            img,
+            view,
+            mid,
+            r_px - 0.15,
+            cfg.background_grey,
+            cfg.sphere_grey,
+        )
+    }
+
     /// Spheres nearly one behind the other (1–3.5 px apart): a split either finds both discs
     /// or none. A single circle fitted to the pair's outline sat between the two, 0.2–0.3 px
     /// from either centre, and was taken for the front sphere.
     #[test]
     fn a_pair_deep_in_each_other_is_both_or_nothing() {
-        use crate::analysis::geometry::{ViewKind, V3};
-        use crate::config::ViewGeometry;
-        use hw_sim::physics::Body;
-        let g = ViewGeometry {
-            region: [0, 0, 80, 64],
-            px_per_mm: 2.1175,
-            origin_px: [39.3, 31.6],
-            u_axis: "+x".into(),
-            v_axis: "+z".into(),
-        };
-        let view = View::from_config(ViewKind::Mirror, &g);
-        let radius_mm = 3.175;
-        let r_px = radius_mm * g.px_per_mm;
+        let view = test_view(ViewKind::Mirror, 80, 64, 2.1175, [39.3, 31.6], "+z");
         let cfg = hw_sim::LabConfig::default();
         let mut singles = 0;
         for (k, sep_px) in [1.0, 1.5, 2.0, 2.5, 3.0, 3.5].iter().enumerate() {
-            let d = V3::new(sep_px / g.px_per_mm, 0.0, 0.4 / g.px_per_mm);
+            let d = V3::new(sep_px / view.px_per_mm, 0.0, 0.4 / view.px_per_mm);
             let front = V3::new(0.1, 0.0, -0.2);
             let centres = [front, front + d - view.facing * 5.0];
-            let body = |pos: V3| Body {
-                pos_mm: pos,
-                vel_mm_s: V3::zeros(),
-                spin_rad_s: V3::zeros(),
-                orientation: nalgebra::UnitQuaternion::identity(),
-                radius_mm,
-                mass_g: 1.0,
-            };
-            let state = move |_t: f64| ([body(centres[0]), body(centres[1])], [vec![], vec![]]);
-            let scene = crate::analysis::geometry::one_view_scene(&view, 80, 64);
-            let mut r = hw_sim::render::Renderer::new(scene, cfg.clone(), 21 + k as u64);
-            let mut raw = Vec::new();
-            r.render(0.0, &state, &mut raw);
-            let mut img = GreyImage::new();
-            img.load(&raw, 80, 64, 1);
-            let truth = centres.map(|c| view.project(&c));
-            let mid = [
-                (truth[0][0] + truth[1][0]) / 2.0,
-                (truth[0][1] + truth[1][1]) / 2.0,
-            ];
-            let fits = split_pair(
-                &img,
-                &view,
-                mid,
-                r_px - 0.15,
-                cfg.background_grey,
-                cfg.sphere_grey,
-            );
+            let (img, truth) = render_pair(&view, 80, 64, centres, &cfg, 21 + k as u64);
+            let fits = split_rendered(&img, &view, truth, &cfg);
             if fits.len() == 1 {
                 singles += 1;
             }
@@ -935,19 +971,8 @@ mod tests {
     /// the sub-pixel phase, which the renders vary.
     #[test]
     fn profile_fit_beats_edge_points_without_bias() {
-        use crate::analysis::geometry::{ViewKind, V3};
-        use crate::config::ViewGeometry;
-        use hw_sim::physics::Body;
-        let g = ViewGeometry {
-            region: [0, 0, 96, 64],
-            px_per_mm: 2.1576,
-            origin_px: [47.3, 31.6],
-            u_axis: "+x".into(),
-            v_axis: "-y".into(),
-        };
-        let view = View::from_config(ViewKind::Direct, &g);
-        let radius_mm = 3.175;
-        let r_px = radius_mm * g.px_per_mm;
+        let view = test_view(ViewKind::Direct, 96, 64, 2.1576, [47.3, 31.6], "-y");
+        let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
         let noisy = hw_sim::LabConfig {
             markers_per_sphere: 0,
             ..Default::default()
@@ -960,31 +985,16 @@ mod tests {
         for (gap_px, cfg) in [(12.0, &noisy), (0.5, &noisy), (12.0, &clean)] {
             let (mut edge, mut model) = (Vec::new(), Vec::new());
             for k in 0..30 {
-                let sep = (2.0 * r_px + gap_px) / g.px_per_mm;
+                let sep = (2.0 * r_px + gap_px) / view.px_per_mm;
                 let angle = 0.4 + 0.07 * k as f64;
                 let shift = V3::new(
-                    (k as f64 * 0.37) % 1.0 / g.px_per_mm,
-                    (k as f64 * 0.61) % 1.0 / g.px_per_mm,
+                    (k as f64 * 0.37) % 1.0 / view.px_per_mm,
+                    (k as f64 * 0.61) % 1.0 / view.px_per_mm,
                     0.0,
                 );
                 let half = V3::new(angle.cos(), angle.sin(), 0.0) * (sep / 2.0);
-                let centres = [shift - half, shift + half];
-                let body = |pos: V3| Body {
-                    pos_mm: pos,
-                    vel_mm_s: V3::zeros(),
-                    spin_rad_s: V3::zeros(),
-                    orientation: nalgebra::UnitQuaternion::identity(),
-                    radius_mm,
-                    mass_g: 1.0,
-                };
-                let state = move |_t: f64| ([body(centres[0]), body(centres[1])], [vec![], vec![]]);
-                let scene = crate::analysis::geometry::one_view_scene(&view, 96, 64);
-                let mut r = hw_sim::render::Renderer::new(scene, (*cfg).clone(), 11 + k);
-                let mut raw = Vec::new();
-                r.render(0.0, &state, &mut raw);
-                let mut img = GreyImage::new();
-                img.load(&raw, 96, 64, 1);
-                let truth = centres.map(|c| view.project(&c));
+                let (img, truth) =
+                    render_pair(&view, 96, 64, [shift - half, shift + half], cfg, 11 + k);
                 let other = Some((truth[1], r_px));
                 let rough = [truth[0][0] + 0.3, truth[0][1] - 0.2];
                 let e = fit_edges(&img, &view, rough, r_px - 0.15, cfg.background_grey, other)
@@ -1024,19 +1034,7 @@ mod tests {
     /// ψ1 ≈ 4 is an error of several hundredths in e.
     #[test]
     fn split_circles_keep_their_separation() {
-        use crate::analysis::geometry::{ViewKind, V3};
-        use crate::config::ViewGeometry;
-        use hw_sim::physics::Body;
-        let g = ViewGeometry {
-            region: [0, 0, 80, 64],
-            px_per_mm: 2.1175,
-            origin_px: [39.3, 31.6],
-            u_axis: "+x".into(),
-            v_axis: "-y".into(),
-        };
-        let view = View::from_config(ViewKind::Direct, &g);
-        let radius_mm = 3.175;
-        let r_px = radius_mm * g.px_per_mm;
+        let view = test_view(ViewKind::Direct, 80, 64, 2.1175, [39.3, 31.6], "-y");
         let cfg = hw_sim::LabConfig {
             markers_per_sphere: 0,
             noise_sigma_grey: 0.0,
@@ -1045,40 +1043,14 @@ mod tests {
         for sep_px in [4.0, 6.0, 8.0, 10.0, 12.0] {
             let mut errors = Vec::new();
             for k in 0..6 {
-                let (dx, dy) = (sep_px / g.px_per_mm, 0.3 / g.px_per_mm);
-                let shift = (k as f64 * 0.37) % 1.0 / g.px_per_mm;
+                let (dx, dy) = (sep_px / view.px_per_mm, 0.3 / view.px_per_mm);
+                let shift = (k as f64 * 0.37) % 1.0 / view.px_per_mm;
                 let centres = [
                     V3::new(-dx / 2.0 + shift, -dy / 2.0 + 0.7 * shift, 0.0),
                     V3::new(dx / 2.0 + shift, dy / 2.0 + 0.7 * shift, 0.0) - view.facing * 4.0,
                 ];
-                let body = |pos: V3| Body {
-                    pos_mm: pos,
-                    vel_mm_s: V3::zeros(),
-                    spin_rad_s: V3::zeros(),
-                    orientation: nalgebra::UnitQuaternion::identity(),
-                    radius_mm,
-                    mass_g: 1.0,
-                };
-                let state = move |_t: f64| ([body(centres[0]), body(centres[1])], [vec![], vec![]]);
-                let scene = crate::analysis::geometry::one_view_scene(&view, 80, 64);
-                let mut r = hw_sim::render::Renderer::new(scene, cfg.clone(), 3 + k);
-                let mut raw = Vec::new();
-                r.render(0.0, &state, &mut raw);
-                let mut img = GreyImage::new();
-                img.load(&raw, 80, 64, 1);
-                let truth = centres.map(|c| view.project(&c));
-                let mid = [
-                    (truth[0][0] + truth[1][0]) / 2.0,
-                    (truth[0][1] + truth[1][1]) / 2.0,
-                ];
-                let fits = split_pair(
-                    &img,
-                    &view,
-                    mid,
-                    r_px - 0.15,
-                    cfg.background_grey,
-                    cfg.sphere_grey,
-                );
+                let (img, truth) = render_pair(&view, 80, 64, centres, &cfg, 3 + k);
+                let fits = split_rendered(&img, &view, truth, &cfg);
                 assert_eq!(fits.len(), 2, "{sep_px} px apart: {fits:?}");
                 let (fa, fb) = if fits[0].centre[0] < fits[1].centre[0] {
                     (fits[0], fits[1])
@@ -1100,61 +1072,22 @@ mod tests {
     /// diameters apart): both discs come out of the one silhouette near their true centres.
     #[test]
     fn one_silhouette_of_two_overlapping_spheres_gives_both_discs() {
-        use crate::analysis::geometry::{ViewKind, V3};
-        use crate::config::ViewGeometry;
-        use hw_sim::physics::Body;
-        let g = ViewGeometry {
-            region: [0, 0, 80, 64],
-            px_per_mm: 2.1576,
-            origin_px: [39.3, 31.6],
-            u_axis: "+x".into(),
-            v_axis: "-y".into(),
+        let view = test_view(ViewKind::Direct, 80, 64, 2.1576, [39.3, 31.6], "-y");
+        let cfg = hw_sim::LabConfig {
+            markers_per_sphere: 0,
+            ..Default::default()
         };
-        let view = View::from_config(ViewKind::Direct, &g);
-        let radius_mm = 3.175;
-        let r_px = radius_mm * g.px_per_mm;
         for (k, (dx, dy)) in [(4.0, 1.5), (5.5, -0.7), (3.4, 2.6), (2.0, 4.9)]
             .iter()
             .enumerate()
         {
-            let scene = crate::analysis::geometry::one_view_scene(&view, 80, 64);
-            let cfg = hw_sim::LabConfig {
-                markers_per_sphere: 0,
-                ..Default::default()
-            };
             let centres = [
                 V3::new(-dx / 2.0, -dy / 2.0, 0.0),
                 // b is behind a (further from the camera along the view's facing direction).
                 V3::new(dx / 2.0, dy / 2.0, 0.0) - view.facing * 4.0,
             ];
-            let body = |pos: V3| Body {
-                pos_mm: pos,
-                vel_mm_s: V3::zeros(),
-                spin_rad_s: V3::zeros(),
-                orientation: nalgebra::UnitQuaternion::identity(),
-                radius_mm,
-                mass_g: 1.0,
-            };
-            let state = move |_t: f64| ([body(centres[0]), body(centres[1])], [vec![], vec![]]);
-            let mut r = hw_sim::render::Renderer::new(scene, cfg.clone(), 7 + k as u64);
-            let mut raw = Vec::new();
-            r.render(0.0, &state, &mut raw);
-            let mut img = GreyImage::new();
-            img.load(&raw, 80, 64, 1);
-            let truth = centres.map(|c| view.project(&c));
-            let mid = [
-                (truth[0][0] + truth[1][0]) / 2.0,
-                (truth[0][1] + truth[1][1]) / 2.0,
-            ];
-            // Radius as a single-sphere fit measures it at the edge level.
-            let fits = split_pair(
-                &img,
-                &view,
-                mid,
-                r_px - 0.15,
-                cfg.background_grey,
-                cfg.sphere_grey,
-            );
+            let (img, truth) = render_pair(&view, 80, 64, centres, &cfg, 7 + k as u64);
+            let fits = split_rendered(&img, &view, truth, &cfg);
             assert_eq!(fits.len(), 2, "case {k}: {fits:?}");
             for t in truth {
                 let best = fits

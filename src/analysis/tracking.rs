@@ -54,6 +54,10 @@ pub fn measure_all(
     // Free flight is a straight line in x and nearly one in the image over a few frames.
     let max_gap_s = 15.0 / source.source().frame_rate_hz;
     let max_gap_x_s = 60.0 / source.source().frame_rate_hz;
+    // Only recent evidence labels a sphere inside a silhouette of two: x extrapolated over many
+    // frames, or a position predicted across the collision's kink, can swap two spheres that
+    // pass each other.
+    let recent_s = 3.0 / source.source().frame_rate_hz;
     let n = source.len();
     for i in 0..n {
         let meta = source.meta(i);
@@ -99,17 +103,13 @@ pub fn measure_all(
                     };
                     let fits =
                         split_pair(&img, view, blobs[0].centroid, r_fit, lv.background, lv.peak);
-                    // Only recent evidence: x extrapolated over many frames, or a position
-                    // predicted across the collision's kink, can swap two spheres that pass
-                    // each other.
-                    let recent = 3.0 / source.source().frame_rate_hz;
                     let fresh_x = [0, 1].map(|s| {
                         spheres[s][0]
                             .as_ref()
                             .map(|m| world_x(&views[0], m.centre_px))
-                            .or_else(|| extrapolate(&x_history[s], t, recent))
+                            .or_else(|| extrapolate(&x_history[s], t, recent_s))
                     });
-                    let predicted = [0, 1].map(|s| memory[vi].predict(s, t, recent));
+                    let predicted = [0, 1].map(|s| memory[vi].predict(s, t, recent_s));
                     let labels = label_split(&fits, view, fresh_x, predicted, r_mean);
                     if labels.iter().any(|l| l.is_some()) {
                         // The sphere nearer this view's camera, as the primary view places them
@@ -215,8 +215,7 @@ pub fn measure_all(
             let mut touching = false;
             if vi == 0 && blobs.len() == 1 && blobs[0].merged && memory[vi].both_in_previous {
                 let t = meta.timestamp_ns as f64 * 1e-9;
-                let recent = 3.0 / source.source().frame_rate_hz;
-                let predicted = [0, 1].map(|s| memory[vi].predict(s, t, recent));
+                let predicted = [0, 1].map(|s| memory[vi].predict(s, t, recent_s));
                 if let [Some(pa), Some(pb)] = predicted {
                     if let Some(pair) =
                         measure_touching(&img, view, &blobs[0], [pa, pb], radius, &lv, cfg)
