@@ -1,6 +1,7 @@
 //! Rendering of the rig's views into a camera frame: orthographic projection of each sphere into
 //! each view, Lambertian shading lit from the view's camera, dark markers, supersampled
-//! anti-aliasing (so sub-pixel truth is meaningful), motion blur over the exposure, read and shot
+//! anti-aliasing, finer where a limb or a dot's rim crosses the pixel (so sub-pixel truth is
+//! meaningful: a coarse regular grid draws the limb as a staircase), motion blur over the exposure, read and shot
 //! noise, and quantisation to 8 or 16 bits.
 //!
 //! The background noise comes from a pre-noised table copied at a random offset per frame: it is
@@ -136,7 +137,17 @@ impl Renderer {
             }
         }
         let ss = self.cfg.supersample.max(1) as usize;
+        let ss_edge = (self.cfg.edge_supersample as usize).max(ss);
         let width = self.scene.width as usize;
+        // Projected centres and radii, px, of every sphere in every sub-exposure pose.
+        let discs: Vec<(f64, f64, f64)> = poses
+            .iter()
+            .flat_map(|p| p.iter())
+            .map(|s| {
+                let (u, v) = project(view, &s.centre_mm);
+                (u, v, s.radius_mm * view.px_per_mm)
+            })
+            .collect();
         for (bi, b) in boxes.iter().enumerate() {
             for v in b.1..=b.3 {
                 for u in b.0..=b.2 {
@@ -147,27 +158,26 @@ impl Renderer {
                     {
                         continue;
                     }
-                    let mut sum = 0.0;
-                    let mut hit_any = false;
-                    for p in poses {
-                        for sy in 0..ss {
-                            for sx in 0..ss {
-                                let su = u as f64 - 0.5 + (sx as f64 + 0.5) / ss as f64;
-                                let sv = v as f64 - 0.5 + (sy as f64 + 0.5) / ss as f64;
-                                match shade(view, &self.cfg, p, su, sv) {
-                                    Some(val) => {
-                                        hit_any = true;
-                                        sum += val;
-                                    }
-                                    None => sum += self.cfg.background_grey,
-                                }
-                            }
-                        }
+                    // The pixel's corners are within √½ px of its centre: a limb closer than
+                    // that crosses it. Elsewhere a marker's rim is found by the coarse grid.
+                    let on_limb = discs.iter().any(|&(cu, cv, r)| {
+                        ((u as f64 - cu).hypot(v as f64 - cv) - r).abs() < 0.75
+                    });
+                    let (mut sum, mut kinds, mut n) = if on_limb {
+                        let (sum, kinds) = self.sample_pixel(view, poses, u, v, ss_edge);
+                        (sum, kinds, ss_edge)
+                    } else {
+                        let (sum, kinds) = self.sample_pixel(view, poses, u, v, ss);
+                        (sum, kinds, ss)
+                    };
+                    if kinds == Kinds::Mixed && n < ss_edge {
+                        (sum, kinds) = self.sample_pixel(view, poses, u, v, ss_edge);
+                        n = ss_edge;
                     }
-                    if !hit_any {
+                    if kinds == Kinds::None {
                         continue;
                     }
-                    let mean = sum / (ss * ss * poses.len()) as f64;
+                    let mean = sum / (n * n * poses.len()) as f64;
                     let sigma = total_sigma(&self.cfg, mean);
                     let k = (self.rng.next_u64() as usize) % TABLE_PIXELS;
                     let val = mean + sigma * self.noise[k] as f64;
@@ -177,6 +187,63 @@ impl Renderer {
             }
         }
     }
+
+    /// Sum of the grey levels at an ss×ss grid in pixel (u, v) over the poses, and whether the
+    /// samples saw nothing but background, one surface only, or a mix (limb or marker rim).
+    fn sample_pixel(
+        &self,
+        view: &ViewSpec,
+        poses: &[[Pose; 2]],
+        u: i64,
+        v: i64,
+        ss: usize,
+    ) -> (f64, Kinds) {
+        let mut sum = 0.0;
+        let mut kinds = Kinds::None;
+        let mut first: Option<Surface> = None;
+        for p in poses {
+            for sy in 0..ss {
+                for sx in 0..ss {
+                    let su = u as f64 - 0.5 + (sx as f64 + 0.5) / ss as f64;
+                    let sv = v as f64 - 0.5 + (sy as f64 + 0.5) / ss as f64;
+                    let hit = shade(view, &self.cfg, p, su, sv);
+                    let surface = hit.map(|(_, s)| s).unwrap_or(Surface::Background);
+                    match hit {
+                        Some((val, _)) => sum += val,
+                        None => sum += self.cfg.background_grey,
+                    }
+                    if hit.is_some() && kinds == Kinds::None {
+                        kinds = Kinds::Uniform;
+                    }
+                    match first {
+                        None => first = Some(surface),
+                        Some(f) if f != surface => kinds = Kinds::Mixed,
+                        _ => {}
+                    }
+                }
+            }
+        }
+        (sum, kinds)
+    }
+}
+
+/// What the samples of one pixel saw.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Kinds {
+    /// Background only: the pixel keeps the background frame's value.
+    None,
+    /// One surface throughout (it may be shaded).
+    Uniform,
+    /// A boundary crosses the pixel.
+    Mixed,
+}
+
+/// Which surface a sample lands on.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Surface {
+    Background,
+    Sphere(usize),
+    Marker(usize),
 }
 
 /// Image position of a world point in a view, px (full-frame coordinates).
@@ -189,13 +256,20 @@ pub fn project(view: &ViewSpec, p: &V3) -> (f64, f64) {
     )
 }
 
-/// Grey level of the nearest sphere surface under image point (su, sv), or None for background.
-fn shade(view: &ViewSpec, cfg: &LabConfig, pose: &[Pose; 2], su: f64, sv: f64) -> Option<f64> {
+/// Grey level of the nearest sphere surface under image point (su, sv) and which surface it is,
+/// or None for background.
+fn shade(
+    view: &ViewSpec,
+    cfg: &LabConfig,
+    pose: &[Pose; 2],
+    su: f64,
+    sv: f64,
+) -> Option<(f64, Surface)> {
     let ua = V3::from(view.u_axis);
     let va = V3::from(view.v_axis);
     let facing = V3::from(view.facing);
-    let mut best: Option<(f64, f64)> = None; // (depth towards camera, grey)
-    for p in pose {
+    let mut best: Option<(f64, f64, Surface)> = None; // (depth towards camera, grey, surface)
+    for (i, p) in pose.iter().enumerate() {
         let (cu, cv) = project(view, &p.centre_mm);
         let r_px = p.radius_mm * view.px_per_mm;
         let (du, dv) = (su - cu, sv - cv);
@@ -206,7 +280,7 @@ fn shade(view: &ViewSpec, cfg: &LabConfig, pose: &[Pose; 2], su: f64, sv: f64) -
         let nz = (1.0 - rho2).sqrt();
         let normal = (ua * du + va * dv) / r_px + facing * nz;
         let depth = p.centre_mm.dot(&facing) + p.radius_mm * nz;
-        if best.is_some_and(|(d, _)| d >= depth) {
+        if best.is_some_and(|(d, _, _)| d >= depth) {
             continue;
         }
         let ang_r = cfg.marker_diameter_mm / 2.0 / p.radius_mm;
@@ -214,14 +288,14 @@ fn shade(view: &ViewSpec, cfg: &LabConfig, pose: &[Pose; 2], su: f64, sv: f64) -
             .markers_world
             .iter()
             .any(|m| normal.dot(&((m - p.centre_mm) / p.radius_mm)) > ang_r.cos());
-        let grey = if on_marker {
-            cfg.marker_grey
+        let (grey, surface) = if on_marker {
+            (cfg.marker_grey, Surface::Marker(i))
         } else {
-            cfg.sphere_grey * (0.55 + 0.45 * nz)
+            (cfg.sphere_grey * (0.55 + 0.45 * nz), Surface::Sphere(i))
         };
-        best = Some((depth, grey));
+        best = Some((depth, grey, surface));
     }
-    best.map(|(_, g)| g)
+    best.map(|(_, g, s)| (g, s))
 }
 
 fn total_sigma(cfg: &LabConfig, grey: f64) -> f64 {

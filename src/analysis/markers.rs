@@ -357,6 +357,7 @@ mod tests {
             radius_mm * g.px_per_mm,
             cfg.background_grey,
             None,
+            &[],
         )?;
         let found = find(
             &img,

@@ -24,12 +24,14 @@ pub mod tracks;
 use crate::config::Config;
 use crate::session::tiff::TiffStack;
 use crate::session::{FrameMeta, SessionError, SessionReader};
+use circle::DotMask;
 use geometry::{View, ViewKind};
 use image::GreyImage;
 use kinematics::{derive, uncertainties, Fits, ImpactError, Series, SideFit, Spins, V3};
+use nalgebra::Rotation3;
 use report::*;
 use rotation::SpinFit;
-use tracking::FrameObs;
+use tracking::{DotMasks, FrameObs};
 
 #[derive(Debug, thiserror::Error)]
 pub enum AnalysisError {
@@ -439,13 +441,105 @@ pub fn analyze_detailed(
             )));
         }
     }
-    let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, progress)?;
-    let input = Input {
-        info,
-        warnings: src.warnings(),
-        frames_dropped: src.frames_dropped(),
+    // Two passes over the frames, each counted as half of the progress: the first finds the
+    // markers and spins, the second measures the circles again without the dots that the
+    // spins put on each rim.
+    let (obs, unmeasured) =
+        tracking::measure_all(src, &views, cfg, &DotMasks::new(), &mut |i, n| {
+            progress(i / 2, n)
+        })?;
+    let (warnings, frames_dropped) = (src.warnings(), src.frames_dropped());
+    let input = || Input {
+        info: info.clone(),
+        warnings: warnings.clone(),
+        frames_dropped,
     };
-    analyze_observations(input, obs, unmeasured, views, cfg)
+    let first = analyze_observations(input(), obs, unmeasured, views.clone(), cfg)?;
+    let dots = rim_dots(&first.1, cfg);
+    if dots.is_empty() {
+        progress(src.len(), src.len());
+        return Ok(first);
+    }
+    let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, &dots, &mut |i, n| {
+        progress((n + i) / 2, n)
+    })?;
+    analyze_observations(input(), obs, unmeasured, views, cfg)
+}
+
+/// Markers a fit of the grey levels near the edge must leave out (`circle::profile_fit`): every
+/// marker found in a frame of a flight phase, in either view, turned with the phase's spin to
+/// each frame within `DOT_REACH_S`, and kept where it lies on the rim band of a view. A dot
+/// within a pixel of the limb darkens the edge too little to be rejected as an outlier, and
+/// moves the centre by a slowly changing few hundredths of a pixel as the sphere turns; the
+/// markers finder does not reach there (53°), but the other view sees the same dot near its
+/// own centre, and frames up to 30 ms away saw it before it reached the limb (the spin's error,
+/// about 1 rad/s, moves a dot by 0.1 px over that time). Without a spin, only the same frame's
+/// other view is used.
+fn rim_dots(details: &Details, cfg: &Config) -> DotMasks {
+    const DOT_REACH_S: f64 = 0.03;
+    // Anti-aliasing, the dot's own position error and the grey-level fit's pixel support.
+    const DOT_MARGIN_PX: f64 = 0.8;
+    let dot_r_mm = cfg.analysis.marker_diameter_mm / 2.0;
+    let mut out = DotMasks::new();
+    for (k, frames) in details.phases.iter().enumerate() {
+        let s = k % 2;
+        let omega = details
+            .spins
+            .get(k)
+            .and_then(|m| m.fit.as_ref())
+            .map(|f| f.omega);
+        let radius_mm = cfg.spheres.sphere(s).0 / 2.0;
+        let behind_limb = -(dot_r_mm / radius_mm).min(1.0).sin();
+        for &i in frames {
+            let fi = &details.obs[i];
+            for (vi, view) in details.views.iter().enumerate() {
+                let Some(m) = &fi.spheres[s][vi] else {
+                    continue;
+                };
+                let dot_px = dot_r_mm * view.px_per_mm + DOT_MARGIN_PX;
+                let inner_px = m.diameter_px / 2.0 - circle::PROFILE_BAND_PX - dot_px;
+                let mut masks: Vec<DotMask> = Vec::new();
+                for &j in frames {
+                    let fj = &details.obs[j];
+                    let dt = fi.time_s - fj.time_s;
+                    let turn = match omega {
+                        Some(w) if dt.abs() <= DOT_REACH_S => Rotation3::from_scaled_axis(w * dt),
+                        None if j == i => Rotation3::identity(),
+                        _ => continue,
+                    };
+                    for d in fj.spheres[s].iter().flatten().flat_map(|mj| &mj.markers) {
+                        let rel = turn * d.rel_mm;
+                        if rel.normalize().dot(&view.facing) < behind_limb {
+                            continue;
+                        }
+                        let off = [
+                            view.px_per_mm * view.u_axis.dot(&rel),
+                            view.px_per_mm * view.v_axis.dot(&rel),
+                        ];
+                        if off[0].hypot(off[1]) < inner_px {
+                            continue;
+                        }
+                        let c = [m.centre_px[0] + off[0], m.centre_px[1] + off[1]];
+                        let seen = masks
+                            .iter()
+                            .any(|q| (q.centre_px[0] - c[0]).hypot(q.centre_px[1] - c[1]) < 0.3);
+                        if !seen {
+                            masks.push(DotMask {
+                                centre_px: c,
+                                radius_px: dot_px,
+                            });
+                        }
+                    }
+                }
+                if !masks.is_empty() {
+                    out.entry((fi.index as usize, vi))
+                        .or_default()
+                        .extend(masks);
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Analyses centres digitised elsewhere (see `tracks` for the CSV columns).

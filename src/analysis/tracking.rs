@@ -2,7 +2,7 @@
 //! sub-pixel circle fit, and the measurements are labelled a or b (a has the smaller world x, as
 //! the report contract says). What cannot be measured is listed with the reason.
 
-use super::circle::{refine, split_pair, CircleFit};
+use super::circle::{refine, split_pair, CircleFit, DotMask};
 use super::detect::{find_blobs, levels, Blob, ViewLevels};
 use super::geometry::View;
 use super::image::GreyImage;
@@ -10,6 +10,7 @@ use super::markers::{self, MarkerObs};
 use super::report::Unmeasured;
 use super::{AnalysisError, FrameSource};
 use crate::config::Config;
+use std::collections::HashMap;
 
 #[derive(Clone, Debug)]
 pub struct Measurement {
@@ -39,10 +40,15 @@ fn world_x(view: &View, px: [f64; 2]) -> f64 {
         .unwrap_or(px[0])
 }
 
+/// Markers expected on the rims, by (frame index, view index): the grey-level circle fits leave
+/// those pixels out. Empty on the first pass, which is what finds the markers and spins.
+pub type DotMasks = HashMap<(usize, usize), Vec<DotMask>>;
+
 pub fn measure_all(
     source: &mut dyn FrameSource,
     views: &[View],
     cfg: &Config,
+    dots: &DotMasks,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Vec<FrameObs>, Vec<Unmeasured>), AnalysisError> {
     let mut img = GreyImage::new();
@@ -66,6 +72,7 @@ pub fn measure_all(
             [vec![None; views.len()], vec![None; views.len()]];
         let mut deferred: Option<(Blob, ViewLevels)> = None;
         for (vi, view) in views.iter().enumerate() {
+            let dots = dots.get(&(i, vi)).map(Vec::as_slice).unwrap_or(&[]);
             let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
             let r_mean = 0.5 * (radius[0] + radius[1]);
             let lv = levels(&img, view);
@@ -218,7 +225,7 @@ pub fn measure_all(
                 let predicted = [0, 1].map(|s| memory[vi].predict(s, t, recent_s));
                 if let [Some(pa), Some(pb)] = predicted {
                     if let Some(pair) =
-                        measure_touching(&img, view, &blobs[0], [pa, pb], radius, &lv, cfg)
+                        measure_touching(&img, view, &blobs[0], [pa, pb], radius, &lv, cfg, dots)
                     {
                         for (s, (m, f)) in pair.into_iter().enumerate() {
                             spheres[s][vi] = Some(m);
@@ -260,7 +267,7 @@ pub fn measure_all(
             for (s, blob) in assigned.iter().enumerate() {
                 let Some(b) = blob else { continue };
                 let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
-                match measure_blob(&img, view, b, s, radius[s], other, &lv, cfg) {
+                match measure_blob(&img, view, b, s, radius[s], other, &lv, cfg, dots) {
                     Ok((m, f)) => {
                         spheres[s][vi] = Some(m);
                         memory[vi].last[s] = Some(f.centre);
@@ -287,6 +294,7 @@ pub fn measure_all(
         }
         if let Some((blob, lv)) = deferred.take() {
             let view = &views[0];
+            let dots0 = dots.get(&(i, 0)).map(Vec::as_slice).unwrap_or(&[]);
             let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
             let contact_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
             // x of a and b as the secondary view measured them in this frame; a sphere it
@@ -307,7 +315,7 @@ pub fn measure_all(
                 [None, None]
             };
             match labels.iter().position(|l| l.is_some()) {
-                Some(s) => match measure_blob(&img, view, &blob, s, radius[s], None, &lv, cfg) {
+                Some(s) => match measure_blob(&img, view, &blob, s, radius[s], None, &lv, cfg, dots0) {
                     Ok((m, f)) => {
                         spheres[s][0] = Some(m);
                         memory[0].last[s] = Some(f.centre);
@@ -367,12 +375,13 @@ fn measure_blob(
     other: Option<([f64; 2], f64)>,
     lv: &ViewLevels,
     cfg: &Config,
+    dots: &[DotMask],
 ) -> Result<(Measurement, CircleFit), String> {
     let name = ["a", "b"][s];
     if b.merged {
         return Err(format!("{name}: silhouettes of a and b merged"));
     }
-    let Some(f) = refine(img, view, b.centroid, radius_px, lv.background, other) else {
+    let Some(f) = refine(img, view, b.centroid, radius_px, lv.background, other, dots) else {
         return Err(format!("{name}: too few edge points for a circle fit"));
     };
     // A sphere partly beyond the view's border is fitted on its visible arc, and kept if that
@@ -422,6 +431,7 @@ fn measure_blob(
 /// with the other's side left out (as for two blobs that nearly touch). None unless both fits
 /// land within a pixel of their predictions and no closer together than 95 % of the contact
 /// distance: touching spheres do not overlap, so a pair that does was not measured right.
+#[allow(clippy::too_many_arguments)]
 fn measure_touching(
     img: &GreyImage,
     view: &View,
@@ -430,6 +440,7 @@ fn measure_touching(
     radius_px: [f64; 2],
     lv: &ViewLevels,
     cfg: &Config,
+    dots: &[DotMask],
 ) -> Option<[(Measurement, CircleFit); 2]> {
     let part = Blob {
         merged: false,
@@ -441,7 +452,7 @@ fn measure_touching(
             ..part.clone()
         };
         let other = Some((predicted[1 - s], radius_px[1 - s]));
-        measure_blob(img, view, &b, s, radius_px[s], other, lv, cfg).ok()
+        measure_blob(img, view, &b, s, radius_px[s], other, lv, cfg, dots).ok()
     };
     let (a, b) = (fit(0)?, fit(1)?);
     for (s, f) in [&a.1, &b.1].iter().enumerate() {
