@@ -910,6 +910,19 @@ mod tests {
         cfg: &hw_sim::LabConfig,
         seed: u64,
     ) -> (GreyImage, [[f64; 2]; 2]) {
+        render_with_dots(view, width, height, centres, [vec![], vec![]], cfg, seed)
+    }
+
+    /// As `render_pair`, with dots at the given world points (on each sphere's surface).
+    fn render_with_dots(
+        view: &View,
+        width: u32,
+        height: u32,
+        centres: [V3; 2],
+        dots: [Vec<V3>; 2],
+        cfg: &hw_sim::LabConfig,
+        seed: u64,
+    ) -> (GreyImage, [[f64; 2]; 2]) {
         let body = |pos: V3| hw_sim::physics::Body {
             pos_mm: pos,
             vel_mm_s: V3::zeros(),
@@ -918,7 +931,7 @@ mod tests {
             radius_mm: SPHERE_RADIUS_MM,
             mass_g: 1.0,
         };
-        let state = move |_t: f64| ([body(centres[0]), body(centres[1])], [vec![], vec![]]);
+        let state = move |_t: f64| ([body(centres[0]), body(centres[1])], dots.clone());
         let scene = crate::analysis::geometry::one_view_scene(view, width, height);
         let mut r = hw_sim::render::Renderer::new(scene, cfg.clone(), seed);
         let mut raw = Vec::new();
@@ -1146,23 +1159,16 @@ mod tests {
                 })
                 .collect();
             let on_sphere: Vec<V3> = dirs.iter().map(|d| shift + d * SPHERE_RADIUS_MM).collect();
-            let body = |pos: V3| hw_sim::physics::Body {
-                pos_mm: pos,
-                vel_mm_s: V3::zeros(),
-                spin_rad_s: V3::zeros(),
-                orientation: nalgebra::UnitQuaternion::identity(),
-                radius_mm: SPHERE_RADIUS_MM,
-                mass_g: 1.0,
-            };
             let far = V3::new(40.0, 40.0, 0.0);
-            let dots_world = on_sphere.clone();
-            let state = move |_t: f64| ([body(shift), body(far)], [dots_world.clone(), Vec::new()]);
-            let scene = crate::analysis::geometry::one_view_scene(&view, 64, 48);
-            let mut r = hw_sim::render::Renderer::new(scene, cfg.clone(), 31 + k);
-            let mut raw = Vec::new();
-            r.render(0.0, &state, &mut raw);
-            let mut img = GreyImage::new();
-            img.load(&raw, 64, 48, 1);
+            let (img, _) = render_with_dots(
+                &view,
+                64,
+                48,
+                [shift, far],
+                [on_sphere.clone(), Vec::new()],
+                cfg,
+                31 + k,
+            );
             let t = view.project(&shift);
             let dot_px = cfg.marker_diameter_mm / 2.0 * view.px_per_mm + 0.8;
             let masks: Vec<DotMask> = dirs
