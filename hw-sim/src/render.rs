@@ -1,8 +1,8 @@
 //! Rendering of the rig's views into a camera frame: orthographic projection of each sphere into
 //! each view, Lambertian shading lit from the view's camera, dark markers, supersampled
 //! anti-aliasing, finer where a limb or a dot's rim crosses the pixel (so sub-pixel truth is
-//! meaningful: a coarse regular grid draws the limb as a staircase), motion blur over the exposure, read and shot
-//! noise, and quantisation to 8 or 16 bits.
+//! meaningful: a coarse regular grid draws the limb as a staircase), motion blur over the
+//! exposure, read and shot noise, and quantisation to 8 or 16 bits.
 //!
 //! The background noise comes from a pre-noised table copied at a random offset per frame: it is
 //! what lets the simulator keep up with 640×480 at 2000 fps, where drawing a fresh Gaussian per

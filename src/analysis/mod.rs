@@ -473,7 +473,7 @@ pub fn analyze_detailed(
 /// moves the centre by a slowly changing few hundredths of a pixel as the sphere turns; the
 /// markers finder does not reach there (53°), but the other view sees the same dot near its
 /// own centre, and frames up to 30 ms away saw it before it reached the limb (the spin's error,
-/// about 1 rad/s, moves a dot by 0.1 px over that time). Without a spin, only the same frame's
+/// about 1 rad/s, moves a dot by about 0.2 px over that time, inside the mask's margin). Without a spin, only the same frame's
 /// other view is used.
 fn rim_dots(details: &Details, cfg: &Config) -> DotMasks {
     const DOT_REACH_S: f64 = 0.03;
