@@ -467,6 +467,20 @@ pub struct DotMask {
     pub radius_px: f64,
 }
 
+impl DotMask {
+    /// Beyond the dot's own radius: anti-aliasing, the predicted position's error and the
+    /// grey-level fit's pixel support.
+    pub const MARGIN_PX: f64 = 0.8;
+
+    /// The mask of a dot of image radius `dot_radius_px` centred at `centre_px`.
+    pub fn around(centre_px: [f64; 2], dot_radius_px: f64) -> DotMask {
+        DotMask {
+            centre_px,
+            radius_px: dot_radius_px + Self::MARGIN_PX,
+        }
+    }
+}
+
 /// A circle through edge points on rays from a rough centre, where the grey level crosses
 /// halfway between `background` and the shaded rim just inside the edge.
 pub fn fit_edges(
@@ -1133,8 +1147,8 @@ mod tests {
         }
     }
 
-    /// Noise-free renders of one sphere at 40 sub-pixel phases, with `markers` dots turned at
-    /// random; returns the grey-level fit's centre error per render, px, without and with the
+    /// Renders of one sphere (as `cfg` draws it) at 40 sub-pixel phases, with `markers` dots
+    /// turned at random; returns the grey-level fit's centre error per render, px, without and with the
     /// true dots near the rim masked.
     fn lone_sphere_errors(cfg: &hw_sim::LabConfig, markers: usize) -> Vec<([f64; 2], [f64; 2])> {
         let view = test_view(ViewKind::Direct, 64, 48, 2.1576, [31.3, 23.6], "-y");
@@ -1170,15 +1184,14 @@ mod tests {
                 31 + k,
             );
             let t = view.project(&shift);
-            let dot_px = cfg.marker_diameter_mm / 2.0 * view.px_per_mm + 0.8;
+            let dot_r_mm = cfg.marker_diameter_mm / 2.0;
+            // A dot is wholly behind the limb once its centre is its own angular radius past it.
+            let behind_limb = -(dot_r_mm / SPHERE_RADIUS_MM).sin();
             let masks: Vec<DotMask> = dirs
                 .iter()
                 .zip(&on_sphere)
-                .filter(|(d, _)| d.dot(&view.facing) > -0.16)
-                .map(|(_, p)| DotMask {
-                    centre_px: view.project(p),
-                    radius_px: dot_px,
-                })
+                .filter(|(d, _)| d.dot(&view.facing) > behind_limb)
+                .map(|(_, p)| DotMask::around(view.project(p), dot_r_mm * view.px_per_mm))
                 .collect();
             let rough = [t[0] + 0.3, t[1] - 0.2];
             let e = fit_edges(&img, &view, rough, r_px - 0.15, cfg.background_grey, None)

@@ -477,8 +477,6 @@ pub fn analyze_detailed(
 /// other view is used.
 fn rim_dots(details: &Details, cfg: &Config) -> DotMasks {
     const DOT_REACH_S: f64 = 0.03;
-    // Anti-aliasing, the dot's own position error and the grey-level fit's pixel support.
-    const DOT_MARGIN_PX: f64 = 0.8;
     let dot_r_mm = cfg.analysis.marker_diameter_mm / 2.0;
     let mut out = DotMasks::new();
     for (k, frames) in details.phases.iter().enumerate() {
@@ -496,8 +494,9 @@ fn rim_dots(details: &Details, cfg: &Config) -> DotMasks {
                 let Some(m) = &fi.spheres[s][vi] else {
                     continue;
                 };
-                let dot_px = dot_r_mm * view.px_per_mm + DOT_MARGIN_PX;
-                let inner_px = m.diameter_px / 2.0 - circle::PROFILE_BAND_PX - dot_px;
+                let dot_px = dot_r_mm * view.px_per_mm;
+                let inner_px =
+                    m.diameter_px / 2.0 - circle::PROFILE_BAND_PX - dot_px - DotMask::MARGIN_PX;
                 let mut masks: Vec<DotMask> = Vec::new();
                 for &j in frames {
                     let fj = &details.obs[j];
@@ -524,10 +523,7 @@ fn rim_dots(details: &Details, cfg: &Config) -> DotMasks {
                             .iter()
                             .any(|q| (q.centre_px[0] - c[0]).hypot(q.centre_px[1] - c[1]) < 0.3);
                         if !seen {
-                            masks.push(DotMask {
-                                centre_px: c,
-                                radius_px: dot_px,
-                            });
+                            masks.push(DotMask::around(c, dot_px));
                         }
                     }
                 }
