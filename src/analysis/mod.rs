@@ -467,45 +467,72 @@ pub fn analyze_detailed(
 }
 
 /// Markers a fit of the grey levels near the edge must leave out (`circle::profile_fit`): every
-/// marker found in a frame of a flight phase, in either view, turned with the phase's spin to
-/// each frame within `DOT_REACH_S`, and kept where it lies on the rim band of a view. A dot
-/// within a pixel of the limb darkens the edge too little to be rejected as an outlier, and
-/// moves the centre by a slowly changing few hundredths of a pixel as the sphere turns; the
-/// markers finder does not reach there (53°), but the other view sees the same dot near its
-/// own centre, and frames up to 30 ms away saw it before it reached the limb (the spin's error,
-/// about 1 rad/s, moves a dot by about 0.2 px over that time, inside the mask's margin). Without a spin, only the same frame's
+/// marker found in any frame of a sphere's flight, in either view, carried with the fitted
+/// spins to each other frame of that flight, and kept where it lies on the rim band of a view.
+/// A dot within a pixel of the limb darkens the edge too little to be rejected as an outlier,
+/// and moves the centre by a slowly changing few hundredths of a pixel as the sphere turns; the
+/// markers finder does not reach there (53°), but the other view sees the same dot near its own
+/// centre, and other frames saw it before it reached the limb — before the impact for a dot on
+/// the rim after it, since the orientation is continuous through the impact and only ω changes
+/// there. A carried dot's mask grows by the drift its spin's uncertainty allows, and a dot is
+/// not carried further than `MAX_DRIFT_PX` of drift. Without a spin, only the same frame's
 /// other view is used.
 fn rim_dots(details: &Details, cfg: &Config) -> DotMasks {
-    const DOT_REACH_S: f64 = 0.03;
+    const MAX_DRIFT_PX: f64 = 0.5;
     let dot_r_mm = cfg.analysis.marker_diameter_mm / 2.0;
+    let t_c = details.impact_time_s;
     let mut out = DotMasks::new();
-    for (k, frames) in details.phases.iter().enumerate() {
-        let s = k % 2;
-        let omega = details
-            .spins
-            .get(k)
-            .and_then(|m| m.fit.as_ref())
-            .map(|f| f.omega);
+    for s in 0..2 {
+        let spin = |k: usize| details.spins.get(k).and_then(|m| m.fit.as_ref());
+        let (before, after) = (spin(s), spin(s + 2));
+        // The turn from t0 to t1 on one side of the impact, and its angle's σ, rad.
+        let turn_within = |t0: f64, t1: f64| -> Option<(Rotation3<f64>, f64)> {
+            let fit = if t0.max(t1) <= t_c { before } else { after }?;
+            let dt = t1 - t0;
+            let sigma = fit.cov.trace().max(0.0).sqrt() * dt.abs();
+            Some((Rotation3::from_scaled_axis(fit.omega * dt), sigma))
+        };
+        let carry = |t0: f64, t1: f64| -> Option<(Rotation3<f64>, f64)> {
+            if t0 == t1 {
+                return Some((Rotation3::identity(), 0.0));
+            }
+            if (t0 - t_c) * (t1 - t_c) >= 0.0 {
+                return turn_within(t0, t1);
+            }
+            let (first, e0) = turn_within(t0, t_c)?;
+            let (second, e1) = turn_within(t_c, t1)?;
+            Some((second * first, e0 + e1))
+        };
         let radius_mm = cfg.spheres.sphere(s).0 / 2.0;
         let behind_limb = -(dot_r_mm / radius_mm).min(1.0).sin();
-        for &i in frames {
+        let frames: Vec<usize> = details.phases[s]
+            .iter()
+            .chain(&details.phases[s + 2])
+            .copied()
+            .collect();
+        for &i in &frames {
             let fi = &details.obs[i];
             for (vi, view) in details.views.iter().enumerate() {
                 let Some(m) = &fi.spheres[s][vi] else {
                     continue;
                 };
                 let dot_px = dot_r_mm * view.px_per_mm;
-                let inner_px =
-                    m.diameter_px / 2.0 - circle::PROFILE_BAND_PX - dot_px - DotMask::MARGIN_PX;
+                let radius_px = radius_mm * view.px_per_mm;
+                let inner_px = m.diameter_px / 2.0
+                    - circle::PROFILE_BAND_PX
+                    - dot_px
+                    - DotMask::MARGIN_PX
+                    - MAX_DRIFT_PX;
                 let mut masks: Vec<DotMask> = Vec::new();
-                for &j in frames {
+                for &j in &frames {
                     let fj = &details.obs[j];
-                    let dt = fi.time_s - fj.time_s;
-                    let turn = match omega {
-                        Some(w) if dt.abs() <= DOT_REACH_S => Rotation3::from_scaled_axis(w * dt),
-                        None if j == i => Rotation3::identity(),
-                        _ => continue,
+                    let Some((turn, sigma_rad)) = carry(fj.time_s, fi.time_s) else {
+                        continue;
                     };
+                    let drift_px = sigma_rad * radius_px;
+                    if drift_px > MAX_DRIFT_PX {
+                        continue;
+                    }
                     for d in fj.spheres[s].iter().flatten().flat_map(|mj| &mj.markers) {
                         let rel = turn * d.rel_mm;
                         if rel.normalize().dot(&view.facing) < behind_limb {
@@ -523,7 +550,7 @@ fn rim_dots(details: &Details, cfg: &Config) -> DotMasks {
                             .iter()
                             .any(|q| (q.centre_px[0] - c[0]).hypot(q.centre_px[1] - c[1]) < 0.3);
                         if !seen {
-                            masks.push(DotMask::around(c, dot_px));
+                            masks.push(DotMask::around(c, dot_px + drift_px));
                         }
                     }
                 }
