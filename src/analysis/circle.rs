@@ -248,57 +248,6 @@ pub const NEIGHBOUR_MARGIN_PX: f64 = 3.0;
 /// Half-width of the band round the edge whose pixels the profile fit uses, px.
 pub const PROFILE_BAND_PX: f64 = 2.5;
 
-/// How much of a square pixel whose centre lies `x` px inside a straight edge is inside, the
-/// edge's outward normal being (cos φ, sin φ), after a blur of uniform width `blur_px`; with
-/// the derivatives by x and by the blur. The pixel seen along the normal is the sum of two
-/// uniform widths |cos φ| and |sin φ|; with the blur, three: the coverage is their sum's
-/// distribution function, a piecewise cubic. A logistic step in its place misses the pixel's
-/// corners, and its centre came out locked to the pixel grid by 0.003 px (noise-free).
-fn edge_coverage(x: f64, cos_phi: f64, sin_phi: f64, blur_px: f64) -> (f64, f64, f64) {
-    let cdf = |blur: f64| -> (f64, f64) {
-        // Widths below 1e-3 px change nothing measurable and would cost precision.
-        let w = [
-            cos_phi.abs().max(1e-3),
-            sin_phi.abs().max(1e-3),
-            blur.max(1e-3),
-        ];
-        let half: f64 = w.iter().sum::<f64>() / 2.0;
-        if x >= half {
-            return (1.0, 0.0);
-        }
-        if x <= -half {
-            return (0.0, 0.0);
-        }
-        let y = x + half;
-        let (mut f, mut df) = (0.0, 0.0);
-        for corner in 0..8u32 {
-            let mut shift = 0.0;
-            for (i, wi) in w.iter().enumerate() {
-                if corner & (1 << i) != 0 {
-                    shift += wi;
-                }
-            }
-            let t = y - shift;
-            if t > 0.0 {
-                let sign = if corner.count_ones() % 2 == 0 {
-                    1.0
-                } else {
-                    -1.0
-                };
-                f += sign * t * t * t;
-                df += sign * t * t;
-            }
-        }
-        let norm = w[0] * w[1] * w[2];
-        ((f / (6.0 * norm)).clamp(0.0, 1.0), df / (2.0 * norm))
-    };
-    let (f, df_dx) = cdf(blur_px);
-    let h = 1e-4;
-    let df_ds = (cdf(blur_px + h).0 - cdf((blur_px - h).max(1e-3)).0)
-        / (blur_px + h - (blur_px - h).max(1e-3));
-    (f, df_dx, df_ds)
-}
-
 /// The disc's centre and radius from the grey levels of every pixel near its edge, not from
 /// edge points: a model I = background + L((R − d)/s)·(a + b·x + c·x²) (L a logistic step of
 /// width s, x = R − d the depth inside the edge, the quadratic the shading's rise inwards) is
@@ -368,14 +317,16 @@ pub fn profile_fit(
         let (du, dv) = (u - p[0], v - p[1]);
         let d = du.hypot(dv).max(1e-9);
         let x = p[2] - d;
-        let (l, dl_dx, dl_ds) = edge_coverage(x, du / d, dv / d, p[3]);
+        let s = p[3];
+        let l = 1.0 / (1.0 + (-x / s).exp());
         let inner = p[5] + p[6] * x + p[7] * x * x;
+        let dl_dx = l * (1.0 - l) / s;
         let di_dx = dl_dx * inner + l * (p[6] + 2.0 * p[7] * x);
         let j = V8::from([
             di_dx * du / d,
             di_dx * dv / d,
             di_dx,
-            dl_ds * inner,
+            -l * (1.0 - l) * x / (s * s) * inner,
             1.0,
             l,
             l * x,
@@ -1369,80 +1320,5 @@ mod tests {
             sm < 0.8 * se,
             "cut disc: grey levels {sm:.4} px, edge points {se:.4} px"
         );
-    }
-
-    /// A disc drawn exactly (each pixel's covered area, 48×48 samples, 16-bit), flat grey: the
-    /// grey-level fit's centre error is then the edge model's own, locked to the pixel grid.
-    /// A logistic step scattered 0.0030 px per axis over sub-pixel phases; the pixel's
-    /// coverage of a straight edge (`edge_coverage`) 0.0004 px. (With Lambertian shading 0.0026
-    /// and 0.0016 px: the rest is the quadratic shading.)
-    #[test]
-    fn the_edge_model_is_not_locked_to_the_pixel_grid() {
-        let (w, h, r) = (40usize, 40usize, 6.85);
-        let g = crate::config::ViewGeometry {
-            region: [0, 0, w as u32, h as u32],
-            px_per_mm: 2.1576,
-            origin_px: [20.0, 20.0],
-            u_axis: "+x".into(),
-            v_axis: "-y".into(),
-        };
-        let view = View::from_config(ViewKind::Direct, &g);
-        let mut errs = Vec::new();
-        for k in 0..30 {
-            let c = [
-                19.0 + (k as f64 * 0.37) % 1.0,
-                19.0 + (k as f64 * 0.618) % 1.0,
-            ];
-            let ss = 48;
-            let mut raw = Vec::with_capacity(w * h * 2);
-            for v in 0..h {
-                for u in 0..w {
-                    let mut inside = 0usize;
-                    for sy in 0..ss {
-                        for sx in 0..ss {
-                            let su = u as f64 - 0.5 + (sx as f64 + 0.5) / ss as f64;
-                            let sv = v as f64 - 0.5 + (sy as f64 + 0.5) / ss as f64;
-                            inside += usize::from((su - c[0]).hypot(sv - c[1]) < r);
-                        }
-                    }
-                    let grey = 30.0 + 170.0 * inside as f64 / (ss * ss) as f64;
-                    raw.extend_from_slice(&((grey * 256.0).round() as u16).to_le_bytes());
-                }
-            }
-            let mut img = GreyImage::new();
-            img.load(&raw, w, h, 2);
-            let e = fit_edges(&img, &view, [c[0] + 0.3, c[1] - 0.2], r - 0.15, 30.0, None)
-                .expect("edge fit");
-            let m = profile_fit(&img, &view, &e, 30.0, None, &[]).expect("grey-level fit");
-            errs.push([m.centre[0] - c[0], m.centre[1] - c[1]]);
-        }
-        let scatter = rms(&errs);
-        assert!(
-            scatter < 0.001,
-            "edge model locked to the grid: {scatter:.4} px per axis"
-        );
-    }
-
-    #[test]
-    fn edge_coverage_is_the_pixels_covered_area() {
-        // Edge along a pixel column, no blur: the covered fraction is linear across the pixel.
-        for x in [-0.4, -0.2, 0.0, 0.3] {
-            let (f, df, _) = edge_coverage(x, 1.0, 0.0, 0.0);
-            assert!(
-                (f - (x + 0.5)).abs() < 2e-3 && (df - 1.0).abs() < 1e-2,
-                "x {x}: {f}"
-            );
-        }
-        // Diagonal edge through the centre: half; a corner 0.1 px deep: 0.1²·√2²/2 = 0.01.
-        let d = std::f64::consts::FRAC_1_SQRT_2;
-        assert!((edge_coverage(0.0, d, d, 0.0).0 - 0.5).abs() < 1e-9);
-        let corner = edge_coverage(-d + 0.1, d, d, 0.0).0;
-        assert!((corner - 0.01).abs() < 1e-3, "corner {corner}");
-        // Blur spreads the step but keeps it symmetric.
-        let (a, b) = (
-            edge_coverage(0.3, 0.8, 0.6, 0.7).0,
-            edge_coverage(-0.3, 0.8, 0.6, 0.7).0,
-        );
-        assert!((a + b - 1.0).abs() < 1e-9);
     }
 }

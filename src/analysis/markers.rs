@@ -39,11 +39,8 @@ pub fn find(
     let r = disc.radius;
     // Markers are detected inside `inner`; the shading profile and the coverage centroid reach
     // closer to the limb (`outer`) so that dots near it are not cut in half.
-    // (Both measured from the geometric limb: the circle fit's radius is that edge; with a
-    // logistic edge model it came out 0.035 px inside it, and these were 1.0 and 0.5 from
-    // there.)
-    let inner = r - 1.035;
-    let outer = r - 0.535;
+    let inner = r - 1.0;
+    let outer = r - 0.5;
     if inner < 2.0 {
         return Vec::new();
     }
