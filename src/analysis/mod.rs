@@ -950,8 +950,8 @@ pub fn analyze_observations(
 
 /// One-sigma uncertainties of everything derived. Propagating the fit covariances assumes each
 /// frame's error is independent and alike; a frame that pulls a fit (a centre biased by the
-/// neighbouring sphere just before contact, say) breaks that. So the kinematic part is the larger
-/// of the propagated value and a leave-one-frame-out jackknife of the whole derivation; the
+/// neighbouring sphere just before contact, say) breaks that. So the kinematic variance is the
+/// mean of the propagated one and a leave-one-frame-out jackknife of the whole derivation; the
 /// spin part is added from the spin fits' own (jackknifed) covariances.
 #[allow(clippy::too_many_arguments)]
 fn combined_uncertainties(
@@ -991,14 +991,19 @@ fn combined_uncertainties(
     let n = reps.len() as f64;
     let mut out = va.clone();
     for i in 0..va.len() {
-        let jk = if n >= 3.0 && reps.iter().all(|r| r.len() == va.len()) {
+        let jk = (n >= 3.0 && reps.iter().all(|r| r.len() == va.len())).then(|| {
             let mean = reps.iter().map(|r| r[i]).sum::<f64>() / n;
             ((n - 1.0) / n * reps.iter().map(|r| (r[i] - mean).powi(2)).sum::<f64>()).sqrt()
-        } else {
-            0.0
-        };
+        });
         let spin_part = (va[i] * va[i] - vk[i] * vk[i]).max(0.0);
-        out[i] = (vk[i].max(jk).powi(2) + spin_part).sqrt();
+        // Two estimates of one variance, the fits' covariance and the jackknife over frames:
+        // their mean. The larger of the two, as before, is biased high by the choosing, and
+        // once the rim dots were masked it covered e 79–87 % of the time in the bench.
+        let kinematic = match jk {
+            Some(jk) => (vk[i].powi(2) + jk.powi(2)) / 2.0,
+            None => vk[i].powi(2),
+        };
+        out[i] = (kinematic + spin_part).sqrt();
     }
     Ok(kinematics::Derived::from_vec(&all, &out))
 }
