@@ -485,24 +485,7 @@ fn rim_dots(details: &Details, cfg: &Config) -> DotMasks {
     for s in 0..2 {
         let spin = |k: usize| details.spins.get(k).and_then(|m| m.fit.as_ref());
         let (before, after) = (spin(s), spin(s + 2));
-        // The turn from t0 to t1 on one side of the impact, and its angle's σ, rad.
-        let turn_within = |t0: f64, t1: f64| -> Option<(Rotation3<f64>, f64)> {
-            let fit = if t0.max(t1) <= t_c { before } else { after }?;
-            let dt = t1 - t0;
-            let sigma = fit.cov.trace().max(0.0).sqrt() * dt.abs();
-            Some((Rotation3::from_scaled_axis(fit.omega * dt), sigma))
-        };
-        let carry = |t0: f64, t1: f64| -> Option<(Rotation3<f64>, f64)> {
-            if t0 == t1 {
-                return Some((Rotation3::identity(), 0.0));
-            }
-            if (t0 - t_c) * (t1 - t_c) >= 0.0 {
-                return turn_within(t0, t1);
-            }
-            let (first, e0) = turn_within(t0, t_c)?;
-            let (second, e1) = turn_within(t_c, t1)?;
-            Some((second * first, e0 + e1))
-        };
+        let carry = |t0: f64, t1: f64| carry_orientation(t0, t1, t_c, before, after);
         let radius_mm = cfg.spheres.sphere(s).0 / 2.0;
         let behind_limb = -(dot_r_mm / radius_mm).min(1.0).sin();
         let frames: Vec<usize> = details.phases[s]
@@ -563,6 +546,34 @@ fn rim_dots(details: &Details, cfg: &Config) -> DotMasks {
         }
     }
     out
+}
+
+/// The turn of a sphere from time t0 to t1, s, and its angle's σ, rad: with the spin fitted
+/// before the impact (at t_c) on that side of it, after it on the other, and both in turn
+/// across it — the orientation is continuous through the impact; only ω changes there. None
+/// where a spin the carry needs was not measured.
+fn carry_orientation(
+    t0: f64,
+    t1: f64,
+    t_c: f64,
+    before: Option<&SpinFit>,
+    after: Option<&SpinFit>,
+) -> Option<(Rotation3<f64>, f64)> {
+    let within = |a: f64, b: f64| -> Option<(Rotation3<f64>, f64)> {
+        let fit = if a.max(b) <= t_c { before } else { after }?;
+        let dt = b - a;
+        let sigma = fit.cov.trace().max(0.0).sqrt() * dt.abs();
+        Some((Rotation3::from_scaled_axis(fit.omega * dt), sigma))
+    };
+    if t0 == t1 {
+        return Some((Rotation3::identity(), 0.0));
+    }
+    if (t0 - t_c) * (t1 - t_c) >= 0.0 {
+        return within(t0, t1);
+    }
+    let (first, e0) = within(t0, t_c)?;
+    let (second, e1) = within(t_c, t1)?;
+    Some((second * first, e0 + e1))
 }
 
 /// Analyses centres digitised elsewhere (see `tracks` for the CSV columns).
@@ -1176,5 +1187,36 @@ mod tests {
             kept.last(),
             kept.len()
         );
+    }
+
+    /// A dot seen before the impact is carried to a frame after it by the spin before the
+    /// impact up to it and the spin after it from there; its σ grows with both; and it is not
+    /// carried across where the spin on the far side is unknown.
+    #[test]
+    fn dots_are_carried_through_the_impact_with_both_spins() {
+        let fit = |w: V3, sigma: f64| SpinFit {
+            omega: w,
+            cov: nalgebra::Matrix3::identity() * (sigma * sigma / 3.0),
+            pairs: 10,
+        };
+        let (before, after) = (
+            fit(V3::new(0.0, 0.0, 200.0), 1.0),
+            fit(V3::new(50.0, 0.0, 120.0), 2.0),
+        );
+        let (t_c, t0, t1) = (0.100, 0.090, 0.104);
+        let (turn, sigma) = carry_orientation(t0, t1, t_c, Some(&before), Some(&after)).unwrap();
+        let expected = Rotation3::from_scaled_axis(after.omega * 0.004)
+            * Rotation3::from_scaled_axis(before.omega * 0.010);
+        assert!((turn.matrix() - expected.matrix()).norm() < 1e-12);
+        assert!(
+            (sigma - (1.0 * 0.010 + 2.0 * 0.004)).abs() < 1e-12,
+            "{sigma}"
+        );
+        // Back again: the inverse turn.
+        let (back, _) = carry_orientation(t1, t0, t_c, Some(&before), Some(&after)).unwrap();
+        assert!(((back * turn).matrix() - nalgebra::Matrix3::identity()).norm() < 1e-12);
+        // One spin of the pair was not measured: only its own side is reachable.
+        assert!(carry_orientation(t0, t1, t_c, Some(&before), None).is_none());
+        assert!(carry_orientation(t0, 0.095, t_c, Some(&before), None).is_some());
     }
 }
