@@ -1265,14 +1265,8 @@ mod tests {
     /// 0.01–0.07 px in recordings. The grey levels inside the border fit it like a whole disc.
     #[test]
     fn a_disc_cut_by_the_view_border_is_fitted_on_its_grey_levels() {
-        let g = crate::config::ViewGeometry {
-            region: [0, 0, 64, 32],
-            px_per_mm: 2.1576,
-            origin_px: [31.3, 12.0],
-            u_axis: "+x".into(),
-            v_axis: "-y".into(),
-        };
-        let view = View::from_config(ViewKind::Direct, &g);
+        // The view is the frame's top 32 rows; the 16 below it are another view's.
+        let view = test_view(ViewKind::Direct, 64, 32, 2.1576, [31.3, 12.0], "-y");
         let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
         let cfg = hw_sim::LabConfig {
             markers_per_sphere: 0,
