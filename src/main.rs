@@ -163,6 +163,9 @@ enum BenchWhat {
         /// A small sweep (4 experiments) instead of the full one.
         #[arg(long)]
         quick: bool,
+        /// Run the sweep this many times, each with other seeds, and pool the figures.
+        #[arg(long, default_value_t = 1)]
+        repeat: u32,
         /// Where sessions are recorded while they are analysed (removed afterwards).
         #[arg(long, default_value = ".")]
         dir: PathBuf,
@@ -545,9 +548,12 @@ fn real_main(cli: Cli) -> Result<i32> {
                 );
                 Ok(0)
             }
-            BenchWhat::Accuracy { quick, dir } => {
+            BenchWhat::Accuracy { quick, repeat, dir } => {
+                if repeat == 0 {
+                    bail!("--repeat: 0 runs nothing, expected at least 1");
+                }
                 let tmp = dir.join(format!(".impactcam-accuracy-{}", std::process::id()));
-                let text = impactcam::bench::accuracy::accuracy(quick, &tmp);
+                let text = impactcam::bench::accuracy::accuracy(quick, repeat, &tmp);
                 let _ = std::fs::remove_dir_all(&tmp);
                 print!("{text}");
                 Ok(0)

@@ -25,6 +25,7 @@ pub use camera::{SimCamera, SimError, SimFrame};
 pub use config::{LabConfig, Pace, Scene, SphereSpec, ViewSpec};
 pub use lab::SimLab;
 pub use physics::{Material, Outcome};
+pub use rng::Rng;
 pub use scenario::Scenario;
 
 /// Standard gravity in mm/s², along −y in world coordinates.

@@ -685,11 +685,14 @@ pub fn analyze_observations(
         .filter(|&k| measured[k].fit.is_none())
         .map(|k| phase_names[k])
         .collect();
-    let spins = if missing.is_empty() {
-        let f = |k: usize| measured[k].fit.expect("checked above");
+    let spin_fits: Option<[&SpinFit; 4]> = match [0, 1, 2, 3].map(|k| measured[k].fit.as_ref()) {
+        [Some(a), Some(b), Some(c), Some(d)] => Some([a, b, c, d]),
+        _ => None,
+    };
+    let spins = if let Some(f) = spin_fits {
         Some(Spins {
-            omega: [0, 1, 2, 3].map(|k| f(k).omega),
-            cov: [0, 1, 2, 3].map(|k| f(k).cov),
+            omega: f.map(|f| f.omega),
+            cov: f.map(|f| f.cov),
         })
     } else {
         warnings.push(format!(
@@ -715,7 +718,7 @@ pub fn analyze_observations(
         &views,
         &ph,
         &fits,
-        spins.as_ref(),
+        spins.as_ref().zip(spin_fits),
         radii,
         contact_mm,
         split,
@@ -825,8 +828,8 @@ pub fn analyze_observations(
         position_impact_mm: Some(position_at_impact(s)),
         velocity_pre_mm_s: est3(d.velocities[s], sd.velocities[s]),
         velocity_post_mm_s: est3(d.velocities[2 + s], sd.velocities[2 + s]),
-        spin_pre_rad_s: measured[s].fit.map(|f| spin_estimate(&f)),
-        spin_post_rad_s: measured[2 + s].fit.map(|f| spin_estimate(&f)),
+        spin_pre_rad_s: measured[s].fit.as_ref().map(spin_estimate),
+        spin_post_rad_s: measured[2 + s].fit.as_ref().map(spin_estimate),
         diameter_px: ViewValues {
             direct: diameters(s, ViewKind::Direct),
             mirror: diameters(s, ViewKind::Mirror),
@@ -963,26 +966,26 @@ pub fn analyze_observations(
 /// frame's error is independent and alike; a frame that pulls a fit (a centre biased by the
 /// neighbouring sphere just before contact, say) breaks that. So the kinematic variance is the
 /// mean of the propagated one and a leave-one-frame-out jackknife of the whole derivation; the
-/// spin part is added from the spin fits' own (jackknifed) covariances.
+/// spin part is added from the spin fits' per-frame influences (`spin_variance`).
 #[allow(clippy::too_many_arguments)]
 fn combined_uncertainties(
     obs: &[FrameObs],
     views: &[View],
     ph: &[Vec<usize>; 4],
     fits: &Fits,
-    spins: Option<&Spins>,
+    spins: Option<(&Spins, [&SpinFit; 4])>,
     radii: [f64; 2],
     contact_mm: f64,
     split: f64,
     g: f64,
 ) -> Result<kinematics::Derived, ImpactError> {
-    let all = uncertainties(fits, spins, radii, contact_mm, g)?;
-    let without_spin_cov = spins.map(|s| Spins {
+    // The trajectories' part, with the spins held at their estimates.
+    let spins_held = spins.map(|(s, _)| Spins {
         omega: s.omega,
         cov: [nalgebra::Matrix3::zeros(); 4],
     });
-    let kin = uncertainties(fits, without_spin_cov.as_ref(), radii, contact_mm, g)?;
-    let omega = spins.map(|s| &s.omega);
+    let kin = uncertainties(fits, spins_held.as_ref(), radii, contact_mm, g)?;
+    let omega = spins.map(|(s, _)| &s.omega);
     let mut frames: Vec<usize> = ph.iter().flatten().copied().collect();
     frames.sort_unstable();
     frames.dedup();
@@ -998,15 +1001,18 @@ fn combined_uncertainties(
             reps.push(d.to_vec());
         }
     }
-    let (va, vk) = (all.to_vec(), kin.to_vec());
+    let vk = kin.to_vec();
+    let spin_var = match spins {
+        Some((s, measured)) => spin_variance(fits, &s.omega, measured, radii, contact_mm, g)?,
+        None => vec![0.0; vk.len()],
+    };
     let n = reps.len() as f64;
-    let mut out = va.clone();
-    for i in 0..va.len() {
-        let jk = (n >= 3.0 && reps.iter().all(|r| r.len() == va.len())).then(|| {
+    let mut out = vk.clone();
+    for i in 0..vk.len() {
+        let jk = (n >= 3.0 && reps.iter().all(|r| r.len() == vk.len())).then(|| {
             let mean = reps.iter().map(|r| r[i]).sum::<f64>() / n;
             ((n - 1.0) / n * reps.iter().map(|r| (r[i] - mean).powi(2)).sum::<f64>()).sqrt()
         });
-        let spin_part = (va[i] * va[i] - vk[i] * vk[i]).max(0.0);
         // Two estimates of one variance, the fits' covariance and the jackknife over frames:
         // their mean. The larger of the two, as before, is biased high by the choosing, and
         // once the rim dots were masked it covered e 79–87 % of the time in the bench.
@@ -1014,9 +1020,56 @@ fn combined_uncertainties(
             Some(jk) => (vk[i].powi(2) + jk.powi(2)) / 2.0,
             None => vk[i].powi(2),
         };
-        out[i] = (kinematic + spin_part).sqrt();
+        out[i] = (kinematic + spin_var[i]).sqrt();
     }
-    Ok(kinematics::Derived::from_vec(&all, &out))
+    Ok(kinematics::Derived::from_vec(&kin, &out))
+}
+
+/// The variance the spins give each derived quantity, from the spin fits' influences of each
+/// frame taken together: one frame's errors move both spheres' spins of that phase at once,
+/// and β and ψ combine the two. Propagating each spin's covariance on its own would leave
+/// that covariance out (on the bench it changed β's σ by a few per cent either way).
+fn spin_variance(
+    fits: &Fits,
+    omega: &[V3; 4],
+    measured: [&SpinFit; 4],
+    radii: [f64; 2],
+    contact_mm: f64,
+    g: f64,
+) -> Result<Vec<f64>, ImpactError> {
+    let mut frames: Vec<usize> = measured
+        .iter()
+        .flat_map(|m| m.frame_influence.iter().map(|(f, _)| *f))
+        .collect();
+    frames.sort_unstable();
+    frames.dedup();
+    let len = derive(fits, Some(omega), radii, contact_mm, g)?
+        .to_vec()
+        .len();
+    let mut var = vec![0.0; len];
+    for f in frames {
+        let step: [V3; 4] = [0, 1, 2, 3].map(|k| {
+            measured[k]
+                .frame_influence
+                .iter()
+                .find(|(frame, _)| *frame == f)
+                .map_or(V3::zeros(), |(_, d)| *d)
+        });
+        let moved = |sign: f64| {
+            let w = [0, 1, 2, 3].map(|k| omega[k] + sign * step[k]);
+            derive(fits, Some(&w), radii, contact_mm, g)
+                .ok()
+                .map(|d| d.to_vec())
+                .filter(|v| v.len() == len)
+        };
+        // Central differences: the influence terms are small, and β is smooth in the spins.
+        if let (Some(up), Some(down)) = (moved(1.0), moved(-1.0)) {
+            for i in 0..len {
+                var[i] += ((up[i] - down[i]) / 2.0).powi(2);
+            }
+        }
+    }
+    Ok(var)
 }
 
 fn spin_estimate(f: &SpinFit) -> Vector {
@@ -1198,6 +1251,7 @@ mod tests {
             omega: w,
             cov: nalgebra::Matrix3::identity() * (sigma * sigma / 3.0),
             pairs: 10,
+            frame_influence: Vec::new(),
         };
         let (before, after) = (
             fit(V3::new(0.0, 0.0, 200.0), 1.0),
@@ -1218,5 +1272,81 @@ mod tests {
         // One spin of the pair was not measured: only its own side is reachable.
         assert!(carry_orientation(t0, t1, t_c, Some(&before), None).is_none());
         assert!(carry_orientation(t0, 0.095, t_c, Some(&before), None).is_some());
+    }
+
+    /// One frame that turns both spheres' spins after the impact by opposite amounts leaves
+    /// R_a·ω_a + R_b·ω_b, and so β, unchanged: the spins' variance of β must see that, where
+    /// propagating each spin's covariance on its own would not. The same turn in the same
+    /// direction doubles β's change.
+    #[test]
+    fn spins_moved_by_the_same_frame_are_propagated_together() {
+        let g = 9806.65;
+        let radius = 3.0;
+        // Oblique along x, slipping along y: g_t ≠ 0, t along y, n along x.
+        let times = |sign: f64| -> Vec<f64> { (1..15).map(|k| sign * k as f64 * 1e-3).collect() };
+        let side = |p0: V3, v: V3, ts: &[f64]| {
+            let line = |i: usize| -> Series {
+                let gi = if i == 1 { -g } else { 0.0 };
+                ts.iter()
+                    .map(|&t| (t, p0[i] + v[i] * t + 0.5 * gi * t * t))
+                    .collect()
+            };
+            SideFit::fit(&[line(0), line(1), line(2)], 0.0, g)
+        };
+        let (va, vb) = (V3::new(500.0, 100.0, 0.0), V3::new(-500.0, -100.0, 0.0));
+        let (va2, vb2) = (V3::new(-450.0, 60.0, 0.0), V3::new(450.0, -60.0, 0.0));
+        let (pa, pb) = (V3::new(-radius, 0.0, 0.0), V3::new(radius, 0.0, 0.0));
+        let fits: Fits = [
+            side(pa, va, &times(-1.0)),
+            side(pb, vb, &times(-1.0)),
+            side(pa, va2, &times(1.0)),
+            side(pb, vb2, &times(1.0)),
+        ];
+        let omega = [
+            V3::new(0.0, 0.0, -80.0),
+            V3::new(0.0, 0.0, 90.0),
+            V3::new(0.0, 0.0, -60.0),
+            V3::new(0.0, 0.0, 70.0),
+        ];
+        let fit = |influence: Vec<(usize, V3)>| SpinFit {
+            omega: V3::zeros(),
+            cov: nalgebra::Matrix3::zeros(),
+            pairs: 10,
+            frame_influence: influence,
+        };
+        let still = fit(Vec::new());
+        let turn = V3::new(0.0, 0.0, 2.0);
+        let beta_var = |a_post: &SpinFit, b_post: &SpinFit| {
+            let v = spin_variance(
+                &fits,
+                &omega,
+                [&still, &still, a_post, b_post],
+                [radius; 2],
+                2.0 * radius,
+                g,
+            )
+            .unwrap();
+            v[v.len() - 1]
+        };
+        let (only_a, opposite, same) = (
+            beta_var(&fit(vec![(20, turn)]), &still),
+            beta_var(&fit(vec![(20, turn)]), &fit(vec![(20, -turn)])),
+            beta_var(&fit(vec![(20, turn)]), &fit(vec![(20, turn)])),
+        );
+        assert!(only_a > 1e-6, "one spin turned must move β: {only_a}");
+        assert!(
+            opposite < 1e-9 * only_a,
+            "opposite turns cancel: {opposite} against {only_a}"
+        );
+        assert!(
+            (same / only_a - 4.0).abs() < 1e-3,
+            "same turns add: {same} against {only_a}"
+        );
+        // Different frames are independent: their variances add.
+        let apart = beta_var(&fit(vec![(20, turn)]), &fit(vec![(21, -turn)]));
+        assert!(
+            (apart / only_a - 2.0).abs() < 1e-3,
+            "{apart} against {only_a}"
+        );
     }
 }

@@ -33,6 +33,7 @@ pub struct Case {
 
 /// The sweep: every tube angle with obliquities from head-on to grazing (both branches), at
 /// 240×192 and σ = 2 grey levels; a few at σ = 4; a few at 640×480. `quick` is a small subset.
+/// Seeds run from 101 in this order.
 pub fn sweep(quick: bool) -> Vec<Case> {
     let mut out = Vec::new();
     let mut seed = 100;
@@ -374,9 +375,31 @@ pub fn coverage(z: &[f64]) -> f64 {
     z.iter().filter(|x| x.abs() <= 1.0).count() as f64 / z.len().max(1) as f64
 }
 
-/// Runs the sweep and prints the accuracy table.
-pub fn accuracy(quick: bool, dir: &Path) -> String {
-    let results: Vec<(Case, CaseResult)> = sweep(quick)
+/// "74 % ± 4 % of 136": the coverage with its binomial standard error, in per cent.
+fn coverage_text(z: &[f64]) -> String {
+    let p = coverage(z);
+    let se = (p * (1.0 - p) / z.len().max(1) as f64).sqrt();
+    format!("{:.0} % ± {:.0} % of {}", 100.0 * p, 100.0 * se, z.len())
+}
+
+/// The sweep `repeat` times over: the k-th repetition (from 0) takes seed + 1000·k, so its
+/// markers, noise and spins differ, while the geometry is the same. One sweep gives 34 β
+/// values, whose ±1σ coverage moves by about ±8 % from run to run; pooling repetitions is how
+/// a coverage figure is pinned down.
+pub fn repeated_sweep(quick: bool, repeat: u32) -> Vec<Case> {
+    (0..repeat.max(1) as u64)
+        .flat_map(|k| {
+            sweep(quick).into_iter().map(move |c| Case {
+                seed: c.seed + 1000 * k,
+                ..c
+            })
+        })
+        .collect()
+}
+
+/// Runs the sweep (`repeat` times) and prints the accuracy table.
+pub fn accuracy(quick: bool, repeat: u32, dir: &Path) -> String {
+    let results: Vec<(Case, CaseResult)> = repeated_sweep(quick, repeat)
         .into_iter()
         .map(|c| {
             let r = run_case(&c, dir);
@@ -421,7 +444,8 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
     );
     let _ = writeln!(
         s,
-        "{:>6} {:>6} {:>4} {:>9} {:>7} {:>8} {:>7} {:>8} {:>8} {:>8} {:>7} {:>9}",
+        "{:>5} {:>6} {:>6} {:>4} {:>9} {:>7} {:>8} {:>7} {:>8} {:>8} {:>8} {:>7} {:>9}",
+        "seed",
         "tube°",
         "offset",
         "σ",
@@ -444,7 +468,8 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
         let worst_v = r.vel_rel.iter().copied().fold(0.0, f64::max);
         let _ = writeln!(
             s,
-            "{:>6} {:>6} {:>4} {:>9} {:>7.3} {} {:>7.4} {} {} {} {:>7.3} {:>9.3}",
+            "{:>5} {:>6} {:>6} {:>4} {:>9} {:>7.3} {} {:>7.4} {} {} {} {:>7.3} {:>9.3}",
+            c.seed,
             c.tube_angle_deg,
             c.impact_offset,
             c.noise_sigma_grey,
@@ -588,23 +613,13 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
                 .into_iter()
                 .collect()
         });
-        let _ = writeln!(
-            s,
-            "  {name}: {:.0} % of {}",
-            100.0 * coverage(&zz),
-            zz.len()
-        );
+        let _ = writeln!(s, "  {name}: {}", coverage_text(&zz));
     }
     for (name, zz) in [
         ("velocity components", all(&|r| r.z_velocity.clone())),
         ("spin components", all(&|r| r.z_spin.clone())),
     ] {
-        let _ = writeln!(
-            s,
-            "  {name}: {:.0} % of {}",
-            100.0 * coverage(&zz),
-            zz.len()
-        );
+        let _ = writeln!(s, "  {name}: {}", coverage_text(&zz));
     }
     let (at, rt, nf) = ok.iter().fold((0.0, 0.0, 0usize), |a, r| {
         (
@@ -622,4 +637,42 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
         );
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Repetitions keep the geometry and change the seed, so pooled figures rest on
+    /// independent experiments, and the first repetition is the plain sweep.
+    #[test]
+    fn repetitions_are_the_same_sweep_with_new_seeds() {
+        let once = sweep(false);
+        let thrice = repeated_sweep(false, 3);
+        assert_eq!(thrice.len(), 3 * once.len());
+        let mut seeds: Vec<u64> = thrice.iter().map(|c| c.seed).collect();
+        seeds.sort_unstable();
+        seeds.dedup();
+        assert_eq!(seeds.len(), thrice.len(), "every experiment its own seed");
+        for (k, chunk) in thrice.chunks(once.len()).enumerate() {
+            for (c, base) in chunk.iter().zip(&once) {
+                assert_eq!(
+                    (
+                        c.tube_angle_deg,
+                        c.impact_offset,
+                        c.width,
+                        c.noise_sigma_grey
+                    ),
+                    (
+                        base.tube_angle_deg,
+                        base.impact_offset,
+                        base.width,
+                        base.noise_sigma_grey
+                    )
+                );
+                assert_eq!(c.seed, base.seed + 1000 * k as u64);
+            }
+        }
+        assert_eq!(coverage_text(&[0.5, -2.0, 0.9, 3.0]), "50 % ± 25 % of 4");
+    }
 }
