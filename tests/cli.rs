@@ -237,6 +237,11 @@ fn bad_input_gets_one_line_naming_the_problem() {
         &["analyze", "cut.tif", "--config", "ok.toml"],
         &["cut.tif"],
     );
+    assert_clean_failure(
+        d,
+        &["bench", "accuracy", "--repeat", "0"],
+        &["--repeat", "at least 1"],
+    );
     // An empty session directory.
     std::fs::create_dir(d.join("empty")).unwrap();
     assert_clean_failure(d, &["replay", "empty"], &["empty", "session"]);
