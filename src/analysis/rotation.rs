@@ -263,9 +263,8 @@ mod tests {
         let n = 12.0_f64;
         let h = 1e-6;
         for &(f, influence) in &fit.frame_influence {
-            let weighted: Vec<PairRotation> = pairs.clone();
             let (mut num, mut den) = (V3::zeros(), 0.0);
-            for p in &weighted {
+            for p in &pairs {
                 let w = p.markers as f64
                     * if p.frame_a == f || p.frame_b == f {
                         1.0 + h
