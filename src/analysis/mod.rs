@@ -714,15 +714,7 @@ pub fn analyze_observations(
     )
     .map_err(impact_err)?;
     let sd = combined_uncertainties(
-        &obs,
-        &views,
-        &ph,
-        &fits,
-        spins.as_ref().zip(spin_fits),
-        radii,
-        contact_mm,
-        split,
-        g,
+        &obs, &views, &ph, &fits, spin_fits, radii, contact_mm, split, g,
     )
     .map_err(impact_err)?;
     let t_c = split + d.tau_c;
@@ -973,19 +965,20 @@ fn combined_uncertainties(
     views: &[View],
     ph: &[Vec<usize>; 4],
     fits: &Fits,
-    spins: Option<(&Spins, [&SpinFit; 4])>,
+    spins: Option<[&SpinFit; 4]>,
     radii: [f64; 2],
     contact_mm: f64,
     split: f64,
     g: f64,
 ) -> Result<kinematics::Derived, ImpactError> {
+    let omega = spins.map(|f| f.map(|f| f.omega));
     // The trajectories' part, with the spins held at their estimates.
-    let spins_held = spins.map(|(s, _)| Spins {
-        omega: s.omega,
+    let spins_held = omega.map(|omega| Spins {
+        omega,
         cov: [nalgebra::Matrix3::zeros(); 4],
     });
     let kin = uncertainties(fits, spins_held.as_ref(), radii, contact_mm, g)?;
-    let omega = spins.map(|(s, _)| &s.omega);
+    let omega = omega.as_ref();
     let mut frames: Vec<usize> = ph.iter().flatten().copied().collect();
     frames.sort_unstable();
     frames.dedup();
@@ -1002,9 +995,11 @@ fn combined_uncertainties(
         }
     }
     let vk = kin.to_vec();
-    let spin_var = match spins {
-        Some((s, measured)) => spin_variance(fits, &s.omega, measured, radii, contact_mm, g)?,
-        None => vec![0.0; vk.len()],
+    let spin_var = match (spins, omega) {
+        (Some(measured), Some(omega)) => {
+            spin_variance(fits, omega, measured, radii, contact_mm, g)?
+        }
+        _ => vec![0.0; vk.len()],
     };
     let n = reps.len() as f64;
     let mut out = vk.clone();
