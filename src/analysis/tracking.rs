@@ -2,7 +2,7 @@
 //! sub-pixel circle fit, and the measurements are labelled a or b (a has the smaller world x, as
 //! the report contract says). What cannot be measured is listed with the reason.
 
-use super::circle::{refine, split_pair, CircleFit, DotMask};
+use super::circle::{profile_fit_pair, refine, rings_meet, split_pair, CircleFit, DotMask};
 use super::detect::{find_blobs, levels, Blob, ViewLevels};
 use super::geometry::View;
 use super::image::GreyImage;
@@ -220,6 +220,7 @@ pub fn measure_all(
             // fix the contact best. Where this view saw both in the last frames, each is fitted
             // from where they were heading, with the other's side left out.
             let mut touching = false;
+            let mut fitted: [Option<CircleFit>; 2] = [None, None];
             if vi == 0 && blobs.len() == 1 && blobs[0].merged && memory[vi].both_in_previous {
                 let t = meta.timestamp_ns as f64 * 1e-9;
                 let predicted = [0, 1].map(|s| memory[vi].predict(s, t, recent_s));
@@ -228,6 +229,7 @@ pub fn measure_all(
                         measure_touching(&img, view, &blobs[0], [pa, pb], radius, &lv, cfg, dots)
                     {
                         for (s, (m, f)) in pair.into_iter().enumerate() {
+                            fitted[s] = Some(f);
                             spheres[s][vi] = Some(m);
                             memory[vi].last[s] = Some(f.centre);
                             memory[vi].radius[s] = Some(f.radius);
@@ -269,6 +271,7 @@ pub fn measure_all(
                 let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
                 match measure_blob(&img, view, b, s, radius[s], other, &lv, cfg, dots) {
                     Ok((m, f)) => {
+                        fitted[s] = Some(f);
                         spheres[s][vi] = Some(m);
                         memory[vi].last[s] = Some(f.centre);
                         memory[vi].radius[s] = Some(f.radius);
@@ -279,6 +282,25 @@ pub fn measure_all(
                         view: view.kind.name().into(),
                         reason,
                     }),
+                }
+            }
+            if let [Some(fa), Some(fb)] = &fitted {
+                if rings_meet(fa, fb) {
+                    if let Some(pair) = profile_fit_pair(&img, view, [fa, fb], lv.background, dots)
+                    {
+                        for (s, f) in pair.iter().enumerate() {
+                            if let Some(m) = spheres[s][vi].as_mut() {
+                                m.centre_px = f.centre;
+                                m.sigma_px = f.centre_sigma;
+                                m.diameter_px = 2.0 * f.radius;
+                            }
+                            memory[vi].last[s] = Some(f.centre);
+                            memory[vi].radius[s] = Some(f.radius);
+                            if let Some(h) = memory[vi].history[s].last_mut() {
+                                h.1 = f.centre;
+                            }
+                        }
+                    }
                 }
             }
             if blobs.len() > 2 {
