@@ -197,10 +197,24 @@ fn the_mirror_scale_and_offset_are_refined_from_the_redundant_x() {
 
 /// A slow head-on impact (10°), where the two discs touch in the direct view for a few frames
 /// and are one silhouette there: those frames, the ones nearest the contact, are measured, each
-/// disc fitted from where it was heading with the other's side left out, and within a tenth of
-/// a pixel of the truth.
+/// disc fitted from where it was heading (alone, or with its neighbour where their rings meet),
+/// and within a tenth of a pixel of the truth. Whether a frame falls while the discs touch
+/// depends on the frame clock's phase at the impact, which the relay's timing on a busy machine
+/// sets; so the experiment is repeated until one does (every run is checked in full).
 #[test]
 fn touching_spheres_in_the_direct_view_are_measured() {
+    for _attempt in 0..5 {
+        if touching_frames_measured_in_one_run() > 0 {
+            return;
+        }
+    }
+    panic!("in five runs no frame with the discs touching: the test shows nothing");
+}
+
+/// One run of `touching_spheres_in_the_direct_view_are_measured`: every frame within 3 of
+/// the impact is measured in the direct view, within 0.1 px; returns how many of them show the
+/// discs touching (less than 0.5 px apart).
+fn touching_frames_measured_in_one_run() -> usize {
     let tmp = tempfile::tempdir().unwrap();
     let toml = "[recording]\nframes = 400\npre_trigger_frames = 10\n[sim]\ntube_angle_deg = 10.0\nimpact_offset = 0.05\nseed = 7\n";
     let out = run(tmp.path(), toml, &[]);
@@ -261,8 +275,5 @@ fn touching_spheres_in_the_direct_view_are_measured() {
             );
         }
     }
-    assert!(
-        touching >= 1,
-        "no frame with the discs touching: the test shows nothing"
-    );
+    touching
 }
