@@ -1085,6 +1085,22 @@ mod tests {
         View::from_config(kind, &g)
     }
 
+    /// The lab's direct view (2.1576 px/mm) filling a `width`×`height` frame, the sphere's
+    /// radius in it, px, and the simulator's scene without dots (noise σ = 2).
+    fn dotless_direct_view(
+        width: u32,
+        height: u32,
+        origin_px: [f64; 2],
+    ) -> (View, f64, hw_sim::LabConfig) {
+        let view = test_view(ViewKind::Direct, width, height, 2.1576, origin_px, "-y");
+        let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
+        let cfg = hw_sim::LabConfig {
+            markers_per_sphere: 0,
+            ..Default::default()
+        };
+        (view, r_px, cfg)
+    }
+
     /// Two still spheres without dots, rendered by the simulator: the frame and their true
     /// centres, px.
     fn render_pair(
@@ -1187,12 +1203,7 @@ mod tests {
     /// the sub-pixel phase, which the renders vary.
     #[test]
     fn profile_fit_beats_edge_points_without_bias() {
-        let view = test_view(ViewKind::Direct, 96, 64, 2.1576, [47.3, 31.6], "-y");
-        let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
-        let noisy = hw_sim::LabConfig {
-            markers_per_sphere: 0,
-            ..Default::default()
-        };
+        let (view, r_px, noisy) = dotless_direct_view(96, 64, [47.3, 31.6]);
         // Without noise the residuals are the model's own misfit: the fit must still settle.
         let clean = hw_sim::LabConfig {
             noise_sigma_grey: 0.0,
@@ -1251,12 +1262,7 @@ mod tests {
     /// contact normal.
     #[test]
     fn touching_discs_fitted_together_keep_the_side_that_faces_the_other() {
-        let view = test_view(ViewKind::Direct, 96, 64, 2.1576, [47.3, 31.6], "-y");
-        let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
-        let cfg = hw_sim::LabConfig {
-            markers_per_sphere: 0,
-            ..Default::default()
-        };
+        let (view, r_px, cfg) = dotless_direct_view(96, 64, [47.3, 31.6]);
         let (mut alone, mut together) = (Vec::new(), Vec::new());
         for k in 0..40 {
             let kf = k as f64;
@@ -1504,12 +1510,7 @@ mod tests {
     #[test]
     fn a_disc_cut_by_the_view_border_is_fitted_on_its_grey_levels() {
         // The view is the frame's top 32 rows; the 16 below it are another view's.
-        let view = test_view(ViewKind::Direct, 64, 32, 2.1576, [31.3, 12.0], "-y");
-        let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
-        let cfg = hw_sim::LabConfig {
-            markers_per_sphere: 0,
-            ..Default::default()
-        };
+        let (view, r_px, cfg) = dotless_direct_view(64, 32, [31.3, 12.0]);
         let (mut edge, mut model) = (Vec::new(), Vec::new());
         for k in 0..40 {
             let kf = k as f64;
