@@ -593,6 +593,33 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
         tight.len(),
         tight.iter().fold(0.0f64, |m, x| m.max(x.abs()))
     );
+    // The issue's goals are stated for 240×192 frames with noise σ = 2 grey levels; the σ = 4
+    // and 640×480 runs are there to show the method holds beyond them.
+    let on_goal_data: Vec<(&Case, f64)> = results
+        .iter()
+        .filter(|(c, r)| {
+            r.failed.is_none() && c.width == 240 && c.height == 192 && c.noise_sigma_grey == 2.0
+        })
+        .filter_map(|(c, r)| r.e.map(|e| (c, e.0.abs())))
+        .collect();
+    if let Some((worst, max)) = on_goal_data
+        .iter()
+        .copied()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+    {
+        let mut errs: Vec<f64> = on_goal_data.iter().map(|x| x.1).collect();
+        errs.sort_by(f64::total_cmp);
+        let _ = writeln!(
+            s,
+            "e on the goals' data (240×192, σ = 2 grey levels; {} experiments): median |Δe| {:.4}, max {max:.4} (seed {}, {}°, offset {}); {} above 0.03",
+            errs.len(),
+            errs[errs.len() / 2],
+            worst.seed,
+            worst.tube_angle_deg,
+            worst.impact_offset,
+            errs.iter().filter(|x| **x > 0.03).count()
+        );
+    }
     let spins_measured = ok.iter().filter(|r| r.psi1.is_some()).count();
     let _ = writeln!(
         s,
@@ -674,5 +701,42 @@ mod tests {
             }
         }
         assert_eq!(coverage_text(&[0.5, -2.0, 0.9, 3.0]), "50 % ± 25 % of 4");
+    }
+
+    /// The "never > 0.03" goal is judged on the data the issue states it for: the σ = 4 and
+    /// 640×480 runs do not count there, however large their errors.
+    #[test]
+    fn e_on_the_goals_data_leaves_out_the_other_noise_and_sizes() {
+        let case = |seed: u64, noise: f64, width: u32, de: f64| {
+            let c = Case {
+                tube_angle_deg: 50.0,
+                impact_offset: 0.97,
+                noise_sigma_grey: noise,
+                width,
+                height: if width == 240 { 192 } else { 480 },
+                seed,
+            };
+            let r = CaseResult {
+                e: Some((de, 0.01)),
+                ..Default::default()
+            };
+            (c, r)
+        };
+        let results = vec![
+            case(1, 2.0, 240, 0.010),
+            case(2, 2.0, 240, -0.041),
+            case(3, 2.0, 240, 0.002),
+            case(4, 4.0, 240, 0.090),
+            case(5, 2.0, 640, -0.080),
+        ];
+        let text = table(&results);
+        let line = text
+            .lines()
+            .find(|l| l.starts_with("e on the goals' data"))
+            .expect("the goals' line is printed");
+        assert_eq!(
+            line,
+            "e on the goals' data (240×192, σ = 2 grey levels; 3 experiments): median |Δe| 0.0100, max 0.0410 (seed 2, 50°, offset 0.97); 1 above 0.03"
+        );
     }
 }
