@@ -2,7 +2,9 @@
 //! sub-pixel circle fit, and the measurements are labelled a or b (a has the smaller world x, as
 //! the report contract says). What cannot be measured is listed with the reason.
 
-use super::circle::{profile_fit_pair, refine, rings_meet, split_pair, CircleFit, DotMask};
+use super::circle::{
+    profile_fit_behind, profile_fit_pair, refine, rings_meet, split_pair, CircleFit, DotMask,
+};
 use super::detect::{find_blobs, levels, Blob, ViewLevels};
 use super::geometry::View;
 use super::image::GreyImage;
@@ -136,6 +138,28 @@ pub fn measure_all(
                                 Some(if da > db { 0 } else { 1 })
                             }
                             _ => None,
+                        };
+                        // The split circles rest on the outline; with the front one known, both
+                        // are refitted on the grey levels, the front disc hiding the back one.
+                        // A refit that moves a disc by more than a fifth of a pixel has slid
+                        // along a crescent too thin to hold it (the split circles are off by
+                        // hundredths, not tenths).
+                        let behind = match (labels, front) {
+                            ([Some(fa), Some(fb)], Some(fr)) => {
+                                profile_fit_behind(&img, view, [fa, fb], fr, lv.background, dots)
+                                    .filter(|pair| {
+                                        pair.iter().zip([fa, fb]).all(|(n, o)| {
+                                            (n.centre[0] - o.centre[0])
+                                                .hypot(n.centre[1] - o.centre[1])
+                                                < MAX_REFIT_MOVE_PX
+                                        })
+                                    })
+                            }
+                            _ => None,
+                        };
+                        let labels: [Option<&CircleFit>; 2] = match &behind {
+                            Some(pair) => [Some(&pair[0]), Some(&pair[1])],
+                            None => labels,
                         };
                         for (s, f) in labels.iter().enumerate() {
                             match f {
@@ -385,6 +409,10 @@ pub fn measure_all(
     }
     Ok((out, unmeasured))
 }
+
+/// How far the grey-level refit of a split silhouette may move a disc from the split's own
+/// circle and still be taken, px (`circle::profile_fit_behind`).
+const MAX_REFIT_MOVE_PX: f64 = 0.2;
 
 /// One sphere's measurement from its blob: the circle fit, its gates, and the dots inside.
 #[allow(clippy::too_many_arguments)]
