@@ -211,12 +211,9 @@ fn touching_spheres_in_the_direct_view_are_measured() {
     panic!("in five runs no frame with the discs touching: the test shows nothing");
 }
 
-/// One run of `touching_spheres_in_the_direct_view_are_measured`: every frame within 3 of
-/// the impact is measured in the direct view, within 0.1 px; returns how many of them show the
-/// discs touching (less than 0.5 px apart).
-fn touching_frames_measured_in_one_run() -> usize {
+/// Runs one simulated experiment with `toml` and returns its session's report and truth.
+fn recorded_report_and_truth(toml: &str) -> (serde_json::Value, serde_json::Value) {
     let tmp = tempfile::tempdir().unwrap();
-    let toml = "[recording]\nframes = 400\npre_trigger_frames = 10\n[sim]\ntube_angle_deg = 10.0\nimpact_offset = 0.05\nseed = 7\n";
     let out = run(tmp.path(), toml, &[]);
     assert!(
         out.status.success(),
@@ -232,7 +229,14 @@ fn touching_frames_measured_in_one_run() -> usize {
     let read = |name: &str| -> serde_json::Value {
         serde_json::from_slice(&std::fs::read(session.join(name)).unwrap()).unwrap()
     };
-    let (report, truth) = (read("report.json"), read("truth.json"));
+    (read("report.json"), read("truth.json"))
+}
+
+/// One run of `touching_spheres_in_the_direct_view_are_measured`: every frame within 3 of
+/// the impact is measured in the direct view, within 0.1 px; returns how many of them show the
+/// discs touching (less than 0.5 px apart).
+fn touching_frames_measured_in_one_run() -> usize {
+    let (report, truth) = recorded_report_and_truth("[recording]\nframes = 400\npre_trigger_frames = 10\n[sim]\ntube_angle_deg = 10.0\nimpact_offset = 0.05\nseed = 7\n");
     let impact = report["impact"]["frame"].as_i64().unwrap();
     let merged: Vec<&serde_json::Value> = report["quality"]["unmeasured"]
         .as_array()
@@ -286,24 +290,7 @@ fn touching_frames_measured_in_one_run() -> usize {
 /// z velocity 4–5σ off).
 #[test]
 fn spheres_behind_each_other_in_the_mirror_are_measured_on_their_grey_levels() {
-    let tmp = tempfile::tempdir().unwrap();
-    let toml = "[recording]\nframes = 400\npre_trigger_frames = 10\n[sim]\ntube_angle_deg = 65.0\nimpact_offset = 0.85\nseed = 1129\n";
-    let out = run(tmp.path(), toml, &[]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let session = std::fs::read_dir(tmp.path().join("sessions"))
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
-    let read = |name: &str| -> serde_json::Value {
-        serde_json::from_slice(&std::fs::read(session.join(name)).unwrap()).unwrap()
-    };
-    let (report, truth) = (read("report.json"), read("truth.json"));
+    let (report, truth) = recorded_report_and_truth("[recording]\nframes = 400\npre_trigger_frames = 10\n[sim]\ntube_angle_deg = 65.0\nimpact_offset = 0.85\nseed = 1129\n");
     let impact = report["impact"]["frame"].as_i64().unwrap();
     let truth_frames: Vec<&serde_json::Value> =
         truth["frames"].as_array().unwrap().iter().collect();

@@ -305,8 +305,9 @@ pub fn profile_fit_pair(
 /// Why: the split into circles rests on outline points, and where the outlines meet they are
 /// neither circle's; as the spheres slide behind each other over a few frames the split circles
 /// drifted by 0.1 px, which a line fit took for a z velocity several σ off. `front` is the
-/// index (0 or 1) of the disc nearer the camera. None unless the back disc shows at least a
-/// third of its edge, and where the fit does not settle.
+/// index (0 or 1) of the disc nearer the camera. None unless the discs are three quarters of
+/// the back one's radius apart or more and the back one shows at least a third of its edge, and
+/// where the fit does not settle.
 pub fn profile_fit_behind(
     img: &GreyImage,
     view: &View,
@@ -361,8 +362,8 @@ pub fn rings_meet(a: &CircleFit, b: &CircleFit) -> bool {
 }
 
 /// The pixels within `PROFILE_BAND_PX` of any of the discs' edges, inside the view, off the
-/// dots and not `excluded`, as (u, v, grey); None unless each disc keeps 20 of its ring's 36
-/// sectors and there are at least 40 pixels per disc.
+/// dots and not `excluded`; None unless each disc keeps 20 of its ring's 36 sectors and at
+/// least 40 pixels.
 fn ring_pixels(
     img: &GreyImage,
     view: &View,

@@ -242,7 +242,8 @@ pub fn measure_all(
             };
             // Two spheres touching in the primary view are one silhouette, in the frames that
             // fix the contact best. Where this view saw both in the last frames, each is fitted
-            // from where they were heading, with the other's side left out.
+            // from where they were heading, with the other's side left out (then both together,
+            // below, where their rings meet).
             let mut touching = false;
             let mut fitted: [Option<CircleFit>; 2] = [None, None];
             if vi == 0 && blobs.len() == 1 && blobs[0].merged && memory[vi].both_in_previous {
