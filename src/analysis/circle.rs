@@ -458,8 +458,9 @@ struct RingPixel {
 }
 
 /// Levenberg–Marquardt fit of `N` discs' grey-level model (see `profile_fit`) to `pixels`,
-/// P = 1 + 7·N parameters: the background, then per disc [cx, cy, R, s, a, b, c]. Each disc
-/// must settle within a pixel of its start.
+/// P = 1 + 7·N parameters: the background, then per disc [cx, cy, R, s, a, b, c]; `layering`
+/// says whether two discs' terms add or one hides the other. Each disc must settle within a
+/// pixel of its start.
 fn fit_grey_levels<const P: usize, const N: usize>(
     pixels: &[RingPixel],
     starts: [&CircleFit; N],
@@ -472,6 +473,9 @@ where
     type Vp<const P: usize> = nalgebra::SVector<f64, P>;
     type Mp<const P: usize> = nalgebra::SMatrix<f64, P, P>;
     debug_assert_eq!(P, 1 + 7 * N);
+    // Only a disc that hides another needs its step's own derivatives (hot path: every pixel,
+    // nine times near the edge).
+    let hiding = matches!(layering, Layering::InFront(_)) && N == 2;
     let at_point = |p: &Vp<P>, u: f64, v: f64| -> (f64, Vp<P>) {
         // Per disc: its term l·inner, the term's derivatives, and l's own (for hiding).
         let mut term = [0.0; N];
@@ -497,11 +501,13 @@ where
             j[o + 4] = l;
             j[o + 5] = l * x;
             j[o + 6] = l * x * x;
-            let js = &mut d_step[k];
-            js[o] = dl_dx * du / d;
-            js[o + 1] = dl_dx * dv / d;
-            js[o + 2] = dl_dx;
-            js[o + 3] = dl_ds;
+            if hiding {
+                let js = &mut d_step[k];
+                js[o] = dl_dx * du / d;
+                js[o + 1] = dl_dx * dv / d;
+                js[o + 2] = dl_dx;
+                js[o + 3] = dl_ds;
+            }
             term[k] = l * inner;
             step[k] = l;
         }
