@@ -329,8 +329,12 @@ impl Default for AnalysisConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct DaemonConfig {
     pub listen: String,
-    /// Bearer token required for state-changing requests off loopback.
+    /// Token required on every route when set (and always off loopback); `IMPACTCAM_TOKEN`
+    /// overrides it. At least 16 characters of `A-Z a-z 0-9 - . _ ~ + / =`.
     pub token: Option<String>,
+    /// Host names (besides the listening address) that requests may give in `Host`, e.g. the
+    /// lab PC's name on the network. Anything else is refused (DNS rebinding).
+    pub allowed_hosts: Vec<String>,
 }
 
 impl Default for DaemonConfig {
@@ -338,6 +342,7 @@ impl Default for DaemonConfig {
         DaemonConfig {
             listen: "127.0.0.1:8620".into(),
             token: None,
+            allowed_hosts: Vec::new(),
         }
     }
 }
@@ -471,17 +476,43 @@ impl Config {
                 r.frames
             ));
         }
+        if r.frames > MAX_FRAMES {
+            return Err(format!(
+                "recording.frames: {} is out of range, expected at most {MAX_FRAMES}",
+                r.frames
+            ));
+        }
         if r.pre_trigger_frames >= r.frames {
             return Err(format!(
                 "recording.pre_trigger_frames: {} must be less than recording.frames = {}",
                 r.pre_trigger_frames, r.frames
             ));
         }
-        if r.ram_buffer_mb == 0 {
-            return Err(
-                "recording.ram_buffer_mb: 0 is not allowed, expected a positive number of MiB"
-                    .into(),
-            );
+        if r.ram_buffer_mb == 0 || r.ram_buffer_mb > MAX_RAM_BUFFER_MB {
+            return Err(format!(
+                "recording.ram_buffer_mb: {} is out of range, expected 1 to {MAX_RAM_BUFFER_MB} MiB",
+                r.ram_buffer_mb
+            ));
+        }
+        // The pre-trigger ring holds whole frames in memory, inside the RAM buffer.
+        let frame_bytes =
+            u64::from(c.width) * u64::from(c.height) * c.pixel_format.bytes_per_pixel() as u64;
+        let ring_bytes = u64::from(r.pre_trigger_frames) * frame_bytes;
+        if ring_bytes > u64::from(r.ram_buffer_mb) << 20 {
+            return Err(format!(
+                "recording.pre_trigger_frames: {} frames of {}×{} take {} MiB, more than recording.ram_buffer_mb = {}",
+                r.pre_trigger_frames,
+                c.width,
+                c.height,
+                ring_bytes.div_ceil(1 << 20),
+                r.ram_buffer_mb
+            ));
+        }
+        if r.arm_timeout_ms > MAX_ARM_TIMEOUT_MS {
+            return Err(format!(
+                "recording.arm_timeout_ms: {} is out of range, expected at most {MAX_ARM_TIMEOUT_MS}",
+                r.arm_timeout_ms
+            ));
         }
         if self.geometry.direct.is_none() && self.geometry.mirror.is_none() {
             return Err(
@@ -497,7 +528,8 @@ impl Config {
             let key = format!("geometry.{name}");
             pos(&format!("{key}.px_per_mm"), v.px_per_mm)?;
             let [u0, v0, w, h] = v.region;
-            if w == 0 || h == 0 || u0 + w > c.width || v0 + h > c.height {
+            let (u_end, v_end) = (u64::from(u0) + u64::from(w), u64::from(v0) + u64::from(h));
+            if w == 0 || h == 0 || u_end > u64::from(c.width) || v_end > u64::from(c.height) {
                 return Err(format!(
                     "{key}.region: {:?} does not fit in the {}×{} frame, expected [u, v, width, height] inside it",
                     v.region, c.width, c.height
@@ -556,13 +588,38 @@ impl Config {
             ));
         }
         if let Some(t) = &self.daemon.token {
-            if t.len() < 16 {
-                return Err("daemon.token: too short, expected at least 16 characters".into());
-            }
+            check_token(t).map_err(|e| format!("daemon.token: {e}"))?;
         }
         self.sim.validate()?;
         Ok(())
     }
+}
+
+/// Most frames one recording may save (a 1000 fps camera's 1000 s).
+pub const MAX_FRAMES: u32 = 1_000_000;
+/// Largest RAM ring (`recording.ram_buffer_mb`), MiB.
+pub const MAX_RAM_BUFFER_MB: u32 = 65_536;
+/// Longest wait for the camera's first frames, ms.
+pub const MAX_ARM_TIMEOUT_MS: u32 = 600_000;
+
+/// The rule for a daemon token from any source (config or `IMPACTCAM_TOKEN`): long enough not
+/// to be guessed, and made of characters that survive a header and a cookie unquoted.
+pub fn check_token(t: &str) -> Result<(), String> {
+    if t.chars().count() < 16 {
+        return Err(format!(
+            "too short ({} characters), expected at least 16",
+            t.chars().count()
+        ));
+    }
+    if let Some(c) = t
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || "-._~+/=".contains(*c)))
+    {
+        return Err(format!(
+            "contains {c:?}, expected only letters, digits and - . _ ~ + / ="
+        ));
+    }
+    Ok(())
 }
 
 fn span_hint(text: &str, span: Option<std::ops::Range<usize>>) -> String {

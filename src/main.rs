@@ -218,6 +218,20 @@ fn progress_printer(status: &mut Status) -> impl FnMut(Event) + '_ {
 }
 
 fn main() {
+    // The relay guard is this executable started by the trigger (see trigger::guard).
+    if std::env::args_os()
+        .nth(1)
+        .is_some_and(|a| a == impactcam::trigger::guard::GUARD_ARG)
+    {
+        std::process::exit(impactcam::trigger::guard::guard_main());
+    }
+    match std::env::current_exe() {
+        Ok(exe) => impactcam::trigger::guard::set_executable(exe),
+        Err(e) => {
+            eprintln!("error: cannot find this executable to start the relay guard: {e}");
+            std::process::exit(1);
+        }
+    }
     let cli = Cli::parse();
     let format = match cli.log_format {
         Some(f) => f,
@@ -226,7 +240,7 @@ fn main() {
             Ok("human") | Ok("") | Err(_) => LogFormat::Human,
             Ok(other) => {
                 eprintln!("error: IMPACTCAM_LOG_FORMAT={other:?}: expected \"human\" or \"json\"");
-                std::process::exit(2);
+                std::process::exit(1);
             }
         },
     };

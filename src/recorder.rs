@@ -33,6 +33,8 @@ pub enum RecordError {
     Trigger(#[from] TriggerError),
     #[error(transparent)]
     Session(#[from] SessionError),
+    #[error("{0}; relay not fired")]
+    Preflight(String),
     #[error("interrupted; the session in {0} is marked incomplete, its frames are kept")]
     Interrupted(PathBuf),
 }
@@ -198,30 +200,58 @@ pub fn record(
         }
     }
     progress(Progress::Armed { frames_seen: seen });
+
+    // Preflight: everything the recording needs is checked, created and allocated before the
+    // relay is touched. A failure here fires nothing and leaves no session.
+    let total = rec.frames as u64;
+    let mut session = match preflight(&info, trigger, cfg) {
+        Ok(s) => s,
+        Err(e) => {
+            acq.finish(camera);
+            return Err(e);
+        }
+    };
+    let mut saved: Vec<FrameMeta> = Vec::new();
+    if let Err(e) = saved.try_reserve_exact(rec.frames as usize) {
+        session.abandon();
+        acq.finish(camera);
+        return Err(RecordError::Preflight(format!(
+            "recording.frames: cannot allocate the index of {} frames: {e}",
+            rec.frames
+        )));
+    }
+    // Frames that arrived during the preflight are still before the firing: the ring keeps
+    // the latest of them.
+    while let Ok(Ok(f)) = acq.rx.try_recv() {
+        ring.push_back(f);
+        while ring.len() > keep {
+            if let Some(old) = ring.pop_front() {
+                let _ = acq.recycle.send(old.data);
+            }
+        }
+    }
     if rec.pre_trigger_frames == 0 {
         ring.clear();
     }
 
-    let pulse = trigger.fire(&CameraLive::confirmed(seen), abort.clone())?;
-    let mut trig = ManifestTrigger::new(&trigger.info(), trigger.pulse_ms());
-    if let Some(last) = ring.back() {
-        let dt = pulse.closed_at().saturating_duration_since(last.host_time);
-        trig.fired_at_ns = Some(last.timestamp_ns + dt.as_nanos() as u64);
-    }
-    let mut session = match SessionWriter::create(&rec.dir, &info, trig, cfg) {
-        Ok(s) => s,
+    let pulse = match trigger.fire(&CameraLive::confirmed(seen), abort.clone()) {
+        Ok(p) => p,
         Err(e) => {
-            drop(pulse);
+            // The relay may have been touched: the session says so rather than vanish.
+            let _ = session.finish(Status::Failed, Some(format!("firing failed: {e}")));
             acq.finish(camera);
             return Err(e.into());
         }
     };
+    if let Some(last) = ring.back() {
+        let dt = pulse.closed_at().saturating_duration_since(last.host_time);
+        session.manifest_mut().trigger.fired_at_ns =
+            Some(last.timestamp_ns.saturating_add(dt.as_nanos() as u64));
+    }
     progress(Progress::Fired {
         session: session.dir().to_path_buf(),
     });
 
-    let total = rec.frames as u64;
-    let mut saved: Vec<FrameMeta> = Vec::with_capacity(rec.frames as usize);
     let mut failure: Option<String> = None;
     let mut pulse = Some(pulse);
     let append = |session: &mut SessionWriter,
@@ -307,19 +337,25 @@ pub fn record(
                 .map(|i| i as u64);
         }
     }
-    if let Some(cam) = camera.as_ref() {
-        let pairs: Vec<(u64, u64)> = saved.iter().map(|m| (m.frame_id, m.timestamp_ns)).collect();
-        if let Some(truth) = cam.ground_truth(&pairs) {
-            let text = serde_json::to_string_pretty(&truth).unwrap_or_default();
-            crate::session::write_atomic(&session.dir().join("truth.json"), text.as_bytes())?;
-        }
-    }
     if let Some(Err(e)) = pulse_result {
         failure.get_or_insert(format!("relay did not confirm opening: {e}"));
     }
     if let Some(e) = write_error {
+        // The frames' own error is the reason; nothing else is written to a failing disk.
         let _ = session.finish(Status::Failed, Some(e.to_string()));
         return Err(e.into());
+    }
+    if let Some(cam) = camera.as_ref() {
+        let pairs: Vec<(u64, u64)> = saved.iter().map(|m| (m.frame_id, m.timestamp_ns)).collect();
+        if let Some(truth) = cam.ground_truth(&pairs) {
+            let text = serde_json::to_string_pretty(&truth).unwrap_or_default();
+            if let Err(e) =
+                crate::session::write_atomic(&session.dir().join("truth.json"), text.as_bytes())
+            {
+                let _ = session.finish(Status::Failed, Some(e.to_string()));
+                return Err(e.into());
+            }
+        }
     }
     let interrupted = abort.load(Ordering::Relaxed);
     let (status, reason) = match failure {
@@ -342,6 +378,69 @@ pub fn record(
         frames_recorded: recorded,
         frames_dropped: dropped,
     })
+}
+
+/// Free space asked for beyond the frames themselves: index lines, manifest, report, plots.
+const DISK_MARGIN_BYTES: u64 = 64 << 20;
+
+/// Creates the session and checks that the recording fits: free disk space for every frame and
+/// index line plus a margin (then reserved), and memory for the RAM ring. Returns the session,
+/// or an error naming the key to change; on error no session is left behind.
+fn preflight(
+    info: &crate::camera::CameraInfo,
+    trigger: &Trigger,
+    cfg: &Config,
+) -> Result<SessionWriter, RecordError> {
+    let rec = &cfg.recording;
+    let trig = ManifestTrigger::new(&trigger.info(), trigger.pulse_ms());
+    let mut session = SessionWriter::create(&rec.dir, info, trig, cfg).map_err(|e| {
+        RecordError::Preflight(format!("recording.dir: cannot create a session: {e}"))
+    })?;
+    // Index lines are at most 42 bytes ("id,timestamp\n" of two u64).
+    let need = (info.frame_bytes() as u64 + 42)
+        .saturating_mul(rec.frames as u64)
+        .saturating_add(DISK_MARGIN_BYTES);
+    let checked = match crate::session::disk::disk_space(session.dir()) {
+        Ok((free, _)) if free < need => Err(format!(
+            "recording.dir: {}: {} MiB free, the recording needs {} MiB ({} frames of {} bytes, plus {} MiB margin)",
+            rec.dir.display(),
+            free >> 20,
+            need.div_ceil(1 << 20),
+            rec.frames,
+            info.frame_bytes(),
+            DISK_MARGIN_BYTES >> 20
+        )),
+        Ok(_) => Ok(()),
+        Err(e) => Err(format!("recording.dir: cannot tell the free space: {e}")),
+    }
+    .and_then(|()| {
+        session
+            .reserve(rec.frames as u64)
+            .map_err(|e| format!("recording.dir: {e}"))
+    })
+    .and_then(|()| match mem_available_bytes() {
+        Some(avail) if (rec.ram_buffer_mb as u64) << 20 > avail => Err(format!(
+            "recording.ram_buffer_mb: {} MiB, but only {} MiB of memory is available",
+            rec.ram_buffer_mb,
+            avail >> 20
+        )),
+        _ => Ok(()),
+    });
+    match checked {
+        Ok(()) => Ok(session),
+        Err(message) => {
+            session.abandon();
+            Err(RecordError::Preflight(message))
+        }
+    }
+}
+
+/// MemAvailable from /proc/meminfo, in bytes (None where there is no such file).
+fn mem_available_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
 }
 
 /// Frames lost between saved frames, from the device frame ids.

@@ -1,6 +1,7 @@
 //! The daemon's page in a real headless browser (Debian's chromium, driven over the Chrome
 //! DevTools protocol): load the page, click "Run", wait for the result, check what it shows.
-//! `.ci/run` installs chromium; without it this test fails and says how to get it.
+//! Ignored by a plain `cargo test` (it needs a browser); `scripts/test` installs Debian's chromium
+//! and runs it. Asked to run without a browser, it fails and says how to get one.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -10,7 +11,7 @@ use tungstenite::Message;
 
 fn browser() -> String {
     let path = std::env::var("IMPACTCAM_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
-    assert!(std::path::Path::new(&path).exists(), "no headless browser at {path}: run .ci/run (it installs Debian's chromium) or set IMPACTCAM_CHROMIUM");
+    assert!(std::path::Path::new(&path).exists(), "no headless browser at {path}: run scripts/test (it installs Debian's chromium) or set IMPACTCAM_CHROMIUM");
     path
 }
 
@@ -48,6 +49,7 @@ impl Drop for Kill {
 }
 
 #[test]
+#[ignore = "needs Debian's chromium: scripts/test installs it and runs this test"]
 fn clicking_run_in_a_browser_shows_the_result() {
     let chromium = browser();
     let dir = tempfile::tempdir().unwrap();

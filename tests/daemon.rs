@@ -58,12 +58,19 @@ impl Daemon {
 
     /// (status, body)
     fn request(&self, method: &str, path: &str, body: &str, auth: Option<&str>) -> (u16, String) {
-        let mut s = TcpStream::connect(&self.addr).unwrap();
-        s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
         let auth = auth
             .map(|t| format!("Authorization: Bearer {t}\r\n"))
             .unwrap_or_default();
-        write!(s, "{method} {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{auth}Content-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}", body.len()).unwrap();
+        let host = format!("Host: {}\r\n", self.addr);
+        let headers = format!("{host}{auth}Content-Type: application/json\r\n");
+        self.raw(method, path, &headers, body)
+    }
+
+    /// (status, body) of a request with exactly these header lines (each ending in CRLF).
+    fn raw(&self, method: &str, path: &str, headers: &str, body: &str) -> (u16, String) {
+        let mut s = TcpStream::connect(&self.addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+        write!(s, "{method} {path} HTTP/1.1\r\nConnection: close\r\n{headers}Content-Length: {}\r\n\r\n{body}", body.len()).unwrap();
         let mut out = String::new();
         s.read_to_string(&mut out).unwrap();
         let status = out
@@ -154,7 +161,8 @@ fn the_api_runs_one_experiment_at_a_time_and_reports_it() {
     s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
     write!(
         s,
-        "GET /api/experiments/{id}/events HTTP/1.1\r\nHost: x\r\n\r\n"
+        "GET /api/experiments/{id}/events HTTP/1.1\r\nHost: {}\r\n\r\n",
+        d.addr
     )
     .unwrap();
     let mut seen = String::new();
@@ -317,6 +325,63 @@ fn a_token_guards_firing_and_is_required_off_loopback() {
         Some("0123456789abcdef-token"),
     );
     assert_eq!(code, 202, "{body}");
+    // Every route needs it, the scheme in any case; the page gets a login form instead.
+    let token = "0123456789abcdef-token";
+    let host = format!("Host: {}\r\n", d.addr);
+    assert_eq!(d.request("GET", "/api/status", "", None).0, 401);
+    assert_eq!(d.request("GET", "/api/experiments/0001", "", None).0, 401);
+    let bearer = format!("{host}Authorization: bEaReR {token}\r\n");
+    assert_eq!(d.raw("GET", "/api/status", &bearer, "").0, 200);
+    let (code, page) = d.raw("GET", "/", &host, "");
+    assert_eq!(code, 200);
+    assert!(
+        page.contains("/api/login") && !page.contains("api/experiments"),
+        "{page}"
+    );
+    // Logging in sets an HttpOnly cookie that then opens every route.
+    let (code, _) = d.request(
+        "POST",
+        "/api/login",
+        r#"{"token": "wrong-token-wrong-token"}"#,
+        None,
+    );
+    assert_eq!(code, 401);
+    let mut s = TcpStream::connect(&d.addr).unwrap();
+    let body = format!("{{\"token\": \"{token}\"}}");
+    write!(s, "POST /api/login HTTP/1.1\r\n{host}Connection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}", body.len()).unwrap();
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).unwrap();
+    assert!(answer.starts_with("HTTP/1.1 204"), "{answer}");
+    let cookie_line = answer
+        .lines()
+        .find(|l| l.to_ascii_lowercase().starts_with("set-cookie:"))
+        .unwrap_or_default()
+        .to_string();
+    assert!(
+        cookie_line.contains("HttpOnly") && cookie_line.contains("SameSite=Strict"),
+        "{cookie_line}"
+    );
+    let cookie = cookie_line
+        .split_once(':')
+        .unwrap()
+        .1
+        .split(';')
+        .next()
+        .unwrap()
+        .trim()
+        .to_string();
+    let with_cookie = format!("{host}Cookie: {cookie}\r\n");
+    assert_eq!(d.raw("GET", "/api/status", &with_cookie, "").0, 200);
+    let (code, page) = d.raw("GET", "/", &with_cookie, "");
+    assert!(code == 200 && page.contains("api/experiments"));
+    // A short token from the environment is refused like one in the config.
+    let out = Command::new(env!("CARGO_BIN_EXE_impactcam"))
+        .args(["serve", "--listen", "127.0.0.1:0"])
+        .env("IMPACTCAM_TOKEN", "short")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("IMPACTCAM_TOKEN"));
     // Refused before binding anything.
     let out = Command::new(env!("CARGO_BIN_EXE_impactcam"))
         .args(["serve", "--listen", "0.0.0.0:0"])
@@ -370,4 +435,146 @@ fn sigterm_aborts_the_running_experiment_safely_and_exits_0() {
         truth["relay_events"].as_array().unwrap().last().unwrap()["closed"],
         false
     );
+}
+
+/// What a web page open on the lab PC could send: none of it may start an experiment (the
+/// relay would fire) or read a report.
+#[test]
+fn requests_a_browser_could_forge_are_refused_and_nothing_fires() {
+    let d = Daemon::start(None, "");
+    let host = format!("Host: {}\r\n", d.addr);
+    let cases: [(&str, String, &str, u16); 6] = [
+        (
+            "text/plain {} (no preflight)",
+            format!("{host}Content-Type: text/plain\r\n"),
+            "{}",
+            415,
+        ),
+        (
+            "empty form",
+            format!("{host}Content-Type: application/x-www-form-urlencoded\r\n"),
+            "",
+            415,
+        ),
+        ("no content type", host.clone(), "{}", 415),
+        (
+            "foreign origin",
+            format!("{host}Content-Type: application/json\r\nOrigin: http://evil.example\r\n"),
+            "{}",
+            403,
+        ),
+        (
+            "null origin",
+            format!("{host}Content-Type: application/json\r\nOrigin: null\r\n"),
+            "{}",
+            403,
+        ),
+        (
+            "rebound host",
+            "Host: evil.example:80\r\nContent-Type: application/json\r\n".into(),
+            "{}",
+            421,
+        ),
+    ];
+    for (what, headers, body, want) in cases {
+        let (code, answer) = d.raw("POST", "/api/experiments", &headers, body);
+        assert_eq!(code, want, "{what}: {answer}");
+        assert!(!answer.contains("\"id\""), "{what}: {answer}");
+    }
+    let port = d.addr.rsplit_once(':').unwrap().1;
+    let (code, _) = d.raw(
+        "GET",
+        "/api/experiments",
+        &format!("Host: evil.example:{port}\r\n"),
+        "",
+    );
+    assert_eq!(code, 421, "DNS rebinding must not read reports");
+    // Nothing started, nothing recorded.
+    assert_eq!(
+        d.json("/api/experiments")["experiments"],
+        serde_json::json!([])
+    );
+    assert!(!d.dir().join("sessions").exists());
+    // The page's own request (same origin, JSON) still works.
+    let own = format!(
+        "{host}Content-Type: application/json\r\nOrigin: http://{}\r\n",
+        d.addr
+    );
+    let (code, answer) = d.raw("POST", "/api/experiments", &own, "{}");
+    assert_eq!(code, 202, "{answer}");
+    // No CORS: a preflight gets no Access-Control-Allow-Origin.
+    let mut s = TcpStream::connect(&d.addr).unwrap();
+    write!(s, "OPTIONS /api/experiments HTTP/1.1\r\n{host}Origin: http://evil.example\r\nAccess-Control-Request-Method: POST\r\nConnection: close\r\n\r\n").unwrap();
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).unwrap();
+    assert!(
+        !answer.to_ascii_lowercase().contains("access-control-allow"),
+        "{answer}"
+    );
+    d.wait_done("0001");
+}
+
+/// Idle sockets are closed after the header-read timeout, and connections past the limit are
+/// closed at once; the daemon still answers afterwards.
+#[test]
+fn idle_connections_time_out_and_are_limited() {
+    let d = Daemon::start(None, "");
+    let idle: Vec<TcpStream> = (0..80)
+        .map(|_| TcpStream::connect(&d.addr).unwrap())
+        .collect();
+    let t0 = Instant::now();
+    let mut closed = 0;
+    for mut s in idle {
+        s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+        let mut buf = [0u8; 64];
+        // 0 bytes (or a reset) means the daemon closed it; a read timeout means it did not.
+        match s.read(&mut buf) {
+            Ok(0) => closed += 1,
+            Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => closed += 1,
+            _ => {}
+        }
+    }
+    assert_eq!(closed, 80, "every idle socket must be closed");
+    assert!(
+        t0.elapsed() < Duration::from_secs(15),
+        "closed after {:?}",
+        t0.elapsed()
+    );
+    assert_eq!(d.json("/api/status")["running"], serde_json::Value::Null);
+}
+
+/// An open event stream (the page keeps one) must not hold up shutdown.
+#[test]
+fn sigterm_exits_within_a_second_with_an_event_stream_open() {
+    let mut d = Daemon::start(None, "[recording]\nframes = 40\n");
+    let id = d.start_experiment("{}");
+    d.wait_done(&id);
+    let mut s = TcpStream::connect(&d.addr).unwrap();
+    write!(
+        s,
+        "GET /api/experiments/{id}/events HTTP/1.1\r\nHost: {}\r\n\r\n",
+        d.addr
+    )
+    .unwrap();
+    let mut buf = [0u8; 4096];
+    assert!(s.read(&mut buf).unwrap() > 0);
+    let t0 = Instant::now();
+    assert!(Command::new("kill")
+        .args(["-TERM", &d.child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let status = loop {
+        if let Some(st) = d.child.try_wait().unwrap() {
+            break st;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(5),
+            "daemon did not exit after SIGTERM"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    let took = t0.elapsed();
+    assert_eq!(status.code(), Some(0));
+    assert!(took < Duration::from_secs(1), "exit took {took:?}");
 }

@@ -24,12 +24,11 @@ fn relay_states(lab: &hw_sim::SimLab) -> Vec<bool> {
     lab.relay_events().iter().map(|e| e.closed).collect()
 }
 
-#[test]
-fn relay_is_released_when_the_session_cannot_be_written() {
-    let tmp = tempfile::tempdir().unwrap();
-    // recording.dir is a file: creating the session fails after the relay has closed.
-    std::fs::write(tmp.path().join("sessions"), b"not a directory").unwrap();
-    let cfg = config(tmp.path(), "[trigger]\nrelay_pulse_ms = 400.0\n");
+/// Records with `extra` config against the simulated lab and returns the error and what the
+/// relay module heard.
+fn record_expecting_error(dir: &Path, extra: &str) -> (RecordError, Vec<bool>) {
+    let text = format!("[recording]\ndir = {dir:?}\n{extra}");
+    let cfg = Config::from_toml_str(&text, "test config").unwrap();
     let mut rig = Rig::open(&cfg).unwrap();
     let lab = rig.lab.clone().unwrap();
     let r = recorder::record(
@@ -39,12 +38,51 @@ fn relay_is_released_when_the_session_cannot_be_written() {
         Arc::new(AtomicBool::new(false)),
         &mut |_| {},
     );
-    assert!(matches!(r, Err(RecordError::Session(_))), "{:?}", r.err());
-    assert_eq!(relay_states(&lab), vec![false, true, false]);
-    // Released as soon as the error was known, not at the end of the 400 ms pulse.
-    let ev = lab.relay_events();
-    let held_s = ev[2].time_s - ev[1].time_s;
-    assert!(held_s < 0.3, "relay held {held_s} s after the error");
+    (
+        r.err().expect("the recording must be refused"),
+        relay_states(&lab),
+    )
+}
+
+#[test]
+fn an_unusable_session_dir_fires_nothing_and_leaves_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    // recording.dir is a file; is under /proc; is on a disk too small for the recording.
+    std::fs::write(tmp.path().join("file"), b"not a directory").unwrap();
+    let cases = [
+        ("a file", tmp.path().join("file"), "", "recording.dir"),
+        (
+            "under /proc",
+            "/proc/impactcam-sessions".into(),
+            "",
+            "recording.dir",
+        ),
+        (
+            "too small a disk",
+            tmp.path().join("sessions"),
+            "pre_trigger_frames = 1\nframes = 1000000\n[camera]\nwidth = 2048\nheight = 2048\n",
+            "MiB free",
+        ),
+    ];
+    for (what, dir, extra, named) in cases {
+        let (e, relay) = record_expecting_error(&dir, extra);
+        assert!(matches!(e, RecordError::Preflight(_)), "{what}: {e}");
+        let text = e.to_string();
+        assert!(
+            text.contains(named) && text.contains("relay not fired"),
+            "{what}: {text}"
+        );
+        // The module only ever heard "open" (sent when the port was opened).
+        assert!(
+            relay.iter().all(|closed| !closed),
+            "{what}: relay heard {relay:?}"
+        );
+    }
+    // No half-written session was left.
+    let left: Vec<_> = std::fs::read_dir(tmp.path().join("sessions"))
+        .map(|d| d.filter_map(|e| e.ok()).map(|e| e.path()).collect())
+        .unwrap_or_default();
+    assert!(left.is_empty(), "{left:?}");
 }
 
 #[test]

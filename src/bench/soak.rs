@@ -15,7 +15,7 @@ fn request(addr: &str, method: &str, path: &str) -> Result<(u16, String), String
         .map_err(|e| e.to_string())?;
     write!(
         s,
-        "{method} {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Length: 0\r\n\r\n"
+        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: 0\r\n\r\n"
     )
     .map_err(|e| e.to_string())?;
     let mut out = String::new();

@@ -8,12 +8,16 @@
 //! answering) it is closed, and opened again before the next experiment. Experiments run on
 //! blocking threads through `experiment::run_on`; the daemon itself never drives a device.
 
+pub mod guard;
+mod listen;
+
 use crate::config::Config;
 use crate::experiment::{self, Event as ExpEvent, ExperimentError, Rig};
 use crate::recorder::Progress;
 use axum::body::Bytes;
-use axum::extract::{DefaultBodyLimit, Path, State};
-use axum::http::{HeaderMap, StatusCode};
+use axum::extract::{DefaultBodyLimit, Path, Request, State};
+use axum::http::{Method, StatusCode};
+use axum::middleware::Next;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::{get, post};
@@ -29,6 +33,14 @@ use tokio_stream::wrappers::BroadcastStream;
 use tokio_stream::StreamExt;
 
 const PAGE: &str = include_str!("page.html");
+/// Shown at `/` to a browser without the token: a form that posts it to `/api/login`.
+const LOGIN_PAGE: &str = include_str!("login.html");
+/// Connections served at once; more are closed as they arrive.
+const MAX_CONNECTIONS: usize = 64;
+/// A client that has not sent a whole request head within this is disconnected.
+const HEADER_READ_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
+/// After SIGTERM / Ctrl-C, how long open connections (event streams) may take to end.
+const SHUTDOWN_GRACE: std::time::Duration = std::time::Duration::from_millis(300);
 const MAX_BODY_BYTES: usize = 16 * 1024;
 const MAX_EXPERIMENTS_LISTED: usize = 10_000;
 
@@ -77,7 +89,7 @@ struct AppState {
     /// The open devices; held by the running experiment for its whole length.
     rig: Mutex<Option<Rig>>,
     rig_health: Mutex<RigHealth>,
-    token: Option<String>,
+    guard: guard::RequestGuard,
     experiments: Mutex<BTreeMap<IdKey, Record>>,
     running: Mutex<Option<(String, tokio::task::JoinHandle<()>)>>,
     abort: Arc<AtomicBool>,
@@ -115,10 +127,16 @@ pub fn serve(
         addr: listen.into(),
         message: format!("not an address: {e}"),
     })?;
-    let token = std::env::var("IMPACTCAM_TOKEN")
-        .ok()
-        .filter(|t| !t.is_empty())
-        .or_else(|| cfg.daemon.token.clone());
+    let token = match std::env::var("IMPACTCAM_TOKEN") {
+        Ok(t) if !t.is_empty() => {
+            crate::config::check_token(&t).map_err(|e| DaemonError::Listen {
+                addr: listen.into(),
+                message: format!("IMPACTCAM_TOKEN: {e}"),
+            })?;
+            Some(t)
+        }
+        _ => cfg.daemon.token.clone(),
+    };
     if !addr.ip().is_loopback() && token.is_none() {
         return Err(DaemonError::Listen {
             addr: listen.into(),
@@ -147,10 +165,10 @@ pub fn serve(
         })?;
         let (events, _) = broadcast::channel(1024);
         let state = Arc::new(AppState {
-            cfg,
+            cfg: cfg.clone(),
             rig: Mutex::new(None),
             rig_health: Mutex::new(RigHealth::default()),
-            token,
+            guard: guard::RequestGuard::new(bound, &cfg.daemon.allowed_hosts, token),
             experiments: Mutex::new(BTreeMap::new()),
             running: Mutex::new(None),
             abort: Arc::new(AtomicBool::new(false)),
@@ -166,7 +184,9 @@ pub fn serve(
             .route("/api/experiments/{id}/events", get(events_sse))
             .route("/api/experiments/{id}/trajectory.svg", get(trajectory))
             .route("/api/experiments/{id}/impact.png", get(impact_frame))
+            .route("/api/login", post(login))
             .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
+            .layer(axum::middleware::from_fn_with_state(state.clone(), refuse_forged))
             .with_state(state.clone());
         {
             let st = state.clone();
@@ -182,26 +202,90 @@ pub fn serve(
         }
         tracing::info!(%bound, "listening");
         ready(bound);
-        let shutdown_state = state.clone();
-        axum::serve(listener, app)
-            .with_graceful_shutdown(async move {
-                shutdown_signal().await;
-                tracing::info!("shutting down: aborting any running experiment");
-                shutdown_state.abort.store(true, Ordering::SeqCst);
-                let running = lock(&shutdown_state.running).take();
-                if let Some((_, handle)) = running {
-                    let _ = handle.await;
-                }
-                // Close the devices now rather than whenever the last reference goes.
-                drop(lock(&shutdown_state.rig).take());
-                tracing::info!("rig closed");
-            })
-            .await
-            .map_err(|e| DaemonError::Listen {
-                addr: listen.into(),
-                message: e.to_string(),
-            })
+        let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+        let server = tokio::spawn(listen::accept_loop(listener, app, stop_rx, listen::Limits {
+            max_connections: MAX_CONNECTIONS,
+            header_read_timeout: HEADER_READ_TIMEOUT,
+            shutdown_grace: SHUTDOWN_GRACE,
+        }));
+        shutdown_signal().await;
+        tracing::info!("shutting down: aborting any running experiment");
+        // Stop accepting and end open connections (event streams included) first: they must
+        // not hold the exit up.
+        let _ = stop_tx.send(true);
+        state.abort.store(true, Ordering::SeqCst);
+        let running = lock(&state.running).take();
+        if let Some((_, handle)) = running {
+            let _ = handle.await;
+        }
+        // Close the devices now rather than whenever the last reference goes.
+        drop(lock(&state.rig).take());
+        tracing::info!("rig closed");
+        let _ = tokio::time::timeout(SHUTDOWN_GRACE * 2, server).await;
+        Ok(())
     })
+}
+
+/// Refuses what a browser could forge (see `guard`), and anything without the token when one
+/// is set; a browser without it gets the login page at `/`.
+async fn refuse_forged(State(state): State<Shared>, req: Request, next: Next) -> Response {
+    if let Err(guard::Refusal(code, message)) = state.guard.check(req.method(), req.headers()) {
+        return error(
+            StatusCode::from_u16(code).unwrap_or(StatusCode::BAD_REQUEST),
+            message,
+        );
+    }
+    if !state.guard.authorised(req.headers()) {
+        let path = req.uri().path();
+        if path == "/api/login" {
+            return next.run(req).await;
+        }
+        if req.method() == Method::GET && path == "/" {
+            return Html(LOGIN_PAGE).into_response();
+        }
+        return error(
+            StatusCode::UNAUTHORIZED,
+            "this daemon needs its token: send Authorization: Bearer <token>, or log in on the page",
+        );
+    }
+    next.run(req).await
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Login {
+    token: String,
+}
+
+/// `POST /api/login {"token"}`: sets the token as an HttpOnly, same-site cookie, so the page
+/// never holds it in its URL or its script.
+async fn login(State(state): State<Shared>, body: Bytes) -> Response {
+    let Ok(login) = serde_json::from_slice::<Login>(&body) else {
+        return error(
+            StatusCode::BAD_REQUEST,
+            "request body: expected {\"token\": \"...\"}",
+        );
+    };
+    if !state.guard.token_required() {
+        return StatusCode::NO_CONTENT.into_response();
+    }
+    if !state.guard.token_matches(&login.token) {
+        // Slows guessing; the token's length already makes it hopeless.
+        tokio::time::sleep(std::time::Duration::from_millis(250)).await;
+        return error(StatusCode::UNAUTHORIZED, "wrong token");
+    }
+    (
+        StatusCode::NO_CONTENT,
+        [(
+            axum::http::header::SET_COOKIE,
+            format!(
+                "{}={}; HttpOnly; SameSite=Strict; Path=/",
+                guard::TOKEN_COOKIE,
+                login.token
+            ),
+        )],
+    )
+        .into_response()
 }
 
 async fn shutdown_signal() {
@@ -261,17 +345,6 @@ fn ensure_rig<'a>(
     }
 }
 
-fn authorised(state: &AppState, headers: &HeaderMap) -> bool {
-    match &state.token {
-        None => true,
-        Some(t) => headers
-            .get("authorization")
-            .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.strip_prefix("Bearer "))
-            .is_some_and(|given| given == t),
-    }
-}
-
 fn progress_json(ev: &ExpEvent) -> Value {
     match ev {
         ExpEvent::Recorder(Progress::Armed { frames_seen }) => {
@@ -295,13 +368,7 @@ fn progress_json(ev: &ExpEvent) -> Value {
     }
 }
 
-async fn start(State(state): State<Shared>, headers: HeaderMap, body: Bytes) -> Response {
-    if !authorised(&state, &headers) {
-        return error(
-            StatusCode::UNAUTHORIZED,
-            "this request fires the relay: send Authorization: Bearer <token>",
-        );
-    }
+async fn start(State(state): State<Shared>, body: Bytes) -> Response {
     let overrides: Overrides = if body.iter().all(|b| b.is_ascii_whitespace()) {
         Overrides::default()
     } else {
@@ -497,7 +564,7 @@ async fn status(State(state): State<Shared>) -> Response {
             h.error.clone(),
         )
     };
-    let disk = match disk_space(&c.recording.dir) {
+    let disk = match crate::session::disk::disk_space(&c.recording.dir) {
         Ok((free, total)) => json!({"free_bytes": free, "total_bytes": total}),
         Err(e) => json!({"error": e}),
     };
@@ -510,49 +577,6 @@ async fn status(State(state): State<Shared>) -> Response {
         "last_error": *lock(&state.last_error),
     }))
     .into_response()
-}
-
-/// Free and total bytes on the file system that holds `dir` (or the nearest existing parent:
-/// the sessions directory is created by the first recording).
-fn disk_space(dir: &std::path::Path) -> Result<(u64, u64), String> {
-    let mut probe = if dir.as_os_str().is_empty() {
-        std::path::PathBuf::from(".")
-    } else {
-        dir.to_path_buf()
-    };
-    while !probe.exists() {
-        match probe.parent() {
-            Some(p) if !p.as_os_str().is_empty() => probe = p.to_path_buf(),
-            _ => {
-                probe = std::path::PathBuf::from(".");
-                break;
-            }
-        }
-    }
-    let c_path = std::ffi::CString::new(probe.as_os_str().as_encoded_bytes())
-        .map_err(|_| format!("{}: path contains a NUL byte", probe.display()))?;
-    let mut st = std::mem::MaybeUninit::<libc::statvfs>::zeroed();
-    // SAFETY: c_path is a valid NUL-terminated string and st points to writable memory of the
-    // right type; statvfs fills it on success.
-    let rc = unsafe { libc::statvfs(c_path.as_ptr(), st.as_mut_ptr()) };
-    if rc != 0 {
-        return Err(format!(
-            "{}: statvfs: {}",
-            probe.display(),
-            std::io::Error::last_os_error()
-        ));
-    }
-    // SAFETY: statvfs returned 0, so the struct is initialised.
-    let st = unsafe { st.assume_init() };
-    Ok(statvfs_bytes(&st))
-}
-
-/// (free to unprivileged users, total) bytes.
-// c_ulong and fsblkcnt_t are not u64 on every target.
-#[allow(clippy::unnecessary_cast)]
-fn statvfs_bytes(st: &libc::statvfs) -> (u64, u64) {
-    let frag = st.f_frsize as u64;
-    (st.f_bavail as u64 * frag, st.f_blocks as u64 * frag)
 }
 
 async fn events_sse(State(state): State<Shared>, Path(id): Path<String>) -> Response {

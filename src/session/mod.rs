@@ -4,6 +4,7 @@
 //! index `frames.idx` (one line per frame, written after the frame's pixels), the config snapshot
 //! `config.toml`, and the analysis outputs. It knows nothing of cameras or analysis.
 
+pub mod disk;
 pub mod tiff;
 
 use crate::camera::CameraInfo;
@@ -146,12 +147,35 @@ impl SessionWriter {
                 Err(e) => return Err(io_err(&d, e)),
             }
         };
+        // Nothing half-written is left behind: a session that cannot be set up completely is
+        // removed (nothing has been fired yet, see recorder).
+        match Self::fill(dir.clone(), iso, camera, trigger, config) {
+            Ok(w) => Ok(w),
+            Err(e) => {
+                let _ = std::fs::remove_dir_all(&dir);
+                Err(e)
+            }
+        }
+    }
+
+    fn fill(
+        dir: PathBuf,
+        iso: String,
+        camera: &CameraInfo,
+        trigger: ManifestTrigger,
+        config: &Config,
+    ) -> Result<SessionWriter, SessionError> {
         let id = dir
             .file_name()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
-        std::fs::write(dir.join("config.toml"), config.to_toml())
-            .map_err(|e| io_err(&dir.join("config.toml"), e))?;
+        let cpath = dir.join("config.toml");
+        File::create(&cpath)
+            .and_then(|mut f| {
+                f.write_all(config.to_toml().as_bytes())?;
+                f.sync_all()
+            })
+            .map_err(|e| io_err(&cpath, e))?;
         let fpath = dir.join("frames.bin");
         let mut frames = File::create(&fpath).map_err(|e| io_err(&fpath, e))?;
         let mut header = Vec::with_capacity(FRAMES_HEADER_BYTES as usize);
@@ -160,11 +184,15 @@ impl SessionWriter {
         header.extend_from_slice(&camera.height.to_le_bytes());
         header.extend_from_slice(&(camera.pixel_format.bytes_per_pixel() as u32).to_le_bytes());
         header.resize(FRAMES_HEADER_BYTES as usize, 0);
-        frames.write_all(&header).map_err(|e| io_err(&fpath, e))?;
+        frames
+            .write_all(&header)
+            .and_then(|_| frames.sync_all())
+            .map_err(|e| io_err(&fpath, e))?;
         let ipath = dir.join("frames.idx");
         let mut index = File::create(&ipath).map_err(|e| io_err(&ipath, e))?;
         index
             .write_all(b"frame_id,timestamp_ns\n")
+            .and_then(|_| index.sync_all())
             .map_err(|e| io_err(&ipath, e))?;
         let manifest = Manifest {
             schema: SESSION_SCHEMA.into(),
@@ -187,7 +215,34 @@ impl SessionWriter {
             frame_bytes: camera.frame_bytes(),
         };
         w.write_manifest()?;
+        disk::sync_dir(&w.dir).map_err(|e| io_err(&w.dir, e))?;
         Ok(w)
+    }
+
+    /// Reserves disk blocks for `frames` frames (and their index lines), so the recording
+    /// cannot run out of space from its own writes. `finish` gives back what was not used.
+    pub fn reserve(&mut self, frames: u64) -> Result<(), SessionError> {
+        let fpath = self.dir.join("frames.bin");
+        let bytes = (self.frame_bytes as u64)
+            .checked_mul(frames)
+            .and_then(|b| b.checked_add(FRAMES_HEADER_BYTES))
+            .ok_or_else(|| io_err(&fpath, format!("{frames} frames overflow a file size")))?;
+        disk::reserve(&self.frames, bytes).map_err(|e| {
+            io_err(
+                &fpath,
+                format!("cannot reserve {bytes} bytes for {frames} frames: {e}"),
+            )
+        })
+    }
+
+    /// Removes a session that was set up but never fired (a preflight check failed).
+    pub fn abandon(self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+
+    /// The manifest as it stands.
+    pub fn manifest(&self) -> &Manifest {
+        &self.manifest
     }
 
     pub fn dir(&self) -> &Path {
@@ -229,15 +284,19 @@ impl SessionWriter {
         write_atomic(&self.dir.join("session.json"), text.as_bytes())
     }
 
-    /// Flushes frames to stable storage and writes the final manifest.
+    /// Gives back the reserved space the frames did not use, flushes frames to stable storage
+    /// and writes the final manifest.
     pub fn finish(
         mut self,
         status: Status,
         reason: Option<String>,
     ) -> Result<PathBuf, SessionError> {
+        let fpath = self.dir.join("frames.bin");
+        let used = FRAMES_HEADER_BYTES + self.manifest.frames_recorded * self.frame_bytes as u64;
         self.frames
-            .sync_data()
-            .map_err(|e| io_err(&self.dir.join("frames.bin"), e))?;
+            .set_len(used)
+            .and_then(|_| self.frames.sync_data())
+            .map_err(|e| io_err(&fpath, e))?;
         self.index
             .sync_data()
             .map_err(|e| io_err(&self.dir.join("frames.idx"), e))?;
@@ -249,13 +308,31 @@ impl SessionWriter {
 }
 
 /// Write to a temporary file and rename over the target, so readers see old or new, never half.
+/// The temporary name is unique to this process and call (two writers never share one), it is
+/// removed when anything fails, and the directory is fsynced after the rename.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SessionError> {
-    let tmp = path.with_extension("tmp");
-    let mut f = File::create(&tmp).map_err(|e| io_err(&tmp, e))?;
-    f.write_all(bytes)
-        .and_then(|_| f.sync_data())
-        .map_err(|e| io_err(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| io_err(path, e))
+    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let name = path
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.{}-{n}.tmp", std::process::id()));
+    let written = File::create(&tmp)
+        .and_then(|mut f| {
+            f.write_all(bytes)?;
+            f.sync_data()
+        })
+        .map_err(|e| io_err(path, e))
+        .and_then(|_| std::fs::rename(&tmp, path).map_err(|e| io_err(path, e)));
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e);
+    }
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        disk::sync_dir(parent).map_err(|e| io_err(parent, e))?;
+    }
+    Ok(())
 }
 
 /// A recorded session opened for reading.
@@ -484,6 +561,11 @@ mod tests {
             }]
         );
         assert_eq!(r.config(), &cfg);
-        assert!(!dir.join("session.tmp").exists());
+        let leftovers: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+            .collect();
+        assert!(leftovers.is_empty(), "{leftovers:?}");
     }
 }

@@ -8,6 +8,7 @@
 pub mod emulator;
 #[cfg(feature = "gpio")]
 pub mod gpio;
+pub mod guard;
 pub mod serial;
 
 use crate::config::{Config, TriggerBackend};
@@ -53,6 +54,63 @@ impl CameraLive {
     }
 }
 
+/// The config as the simulated module sees it: it speaks LCUS, whatever the config says for
+/// real modules.
+fn sim_trigger(t: &crate::config::TriggerConfig) -> crate::config::TriggerConfig {
+    crate::config::TriggerConfig {
+        protocol: crate::config::RelayProtocol::Lcus,
+        ..t.clone()
+    }
+}
+
+/// What a relay reports of itself, known before it is opened (the guard's parent says it).
+fn open_info(t: &crate::config::TriggerConfig, port: &str, backend: &str) -> TriggerInfo {
+    use crate::config::RelayProtocol;
+    let protocol = match (backend, t.protocol) {
+        ("sim", _) | (_, RelayProtocol::Lcus) => "lcus",
+        (_, RelayProtocol::Numato) => "numato",
+        (_, RelayProtocol::Generic) => "generic",
+    };
+    if backend == "gpio" {
+        return TriggerInfo {
+            backend: backend.into(),
+            port: Some(format!("{} line {}", t.gpio_chip, t.gpio_line)),
+            protocol: None,
+            channel: None,
+        };
+    }
+    TriggerInfo {
+        backend: backend.into(),
+        port: Some(port.into()),
+        protocol: Some(protocol.into()),
+        channel: Some(t.channel),
+    }
+}
+
+/// Opens a relay in this process: `backend` is "serial", "sim" (the simulator's PTY, always
+/// LCUS) or "gpio".
+pub(crate) fn open_direct(
+    t: &crate::config::TriggerConfig,
+    port: &str,
+    backend: &str,
+) -> Result<Box<dyn Relay>, TriggerError> {
+    match backend {
+        "serial" => Ok(Box::new(serial::SerialRelay::open(t, port, "serial")?)),
+        "sim" => Ok(Box::new(serial::SerialRelay::open(&sim_trigger(t), port, "sim")?)),
+        #[cfg(feature = "gpio")]
+        "gpio" => Ok(Box::new(gpio::GpioRelay::open(t)?)),
+        #[cfg(not(feature = "gpio"))]
+        "gpio" => Err(TriggerError::Open {
+            port: t.gpio_chip.clone(),
+            message: "the gpio trigger backend is not built into this binary (rebuild with `--features gpio`)".into(),
+        }),
+        other => Err(TriggerError::Open {
+            port: port.into(),
+            message: format!("unknown relay backend {other:?}"),
+        }),
+    }
+}
+
 /// No relay: for footage of spheres released by other means. Firing does nothing.
 struct NoRelay;
 
@@ -78,32 +136,35 @@ pub struct Trigger {
 
 impl Trigger {
     /// Opens the relay the config names; `sim_port` is the simulated relay's pseudo-terminal.
+    /// A real relay (serial, GPIO, the simulator's PTY) is driven through the relay guard, a
+    /// child process that opens it if this process dies (`guard`), whenever the executable
+    /// has named itself (`guard::set_executable`); otherwise in this process.
     pub fn open(cfg: &Config, sim_port: Option<&str>) -> Result<Trigger, TriggerError> {
         let t = &cfg.trigger;
-        let relay: Box<dyn Relay> = match t.backend {
-            TriggerBackend::None => Box::new(NoRelay),
-            TriggerBackend::Serial => Box::new(serial::SerialRelay::open(t, &t.port, "serial")?),
-            #[cfg(feature = "gpio")]
-            TriggerBackend::Gpio => Box::new(gpio::GpioRelay::open(t)?),
-            #[cfg(not(feature = "gpio"))]
-            TriggerBackend::Gpio => {
-                return Err(TriggerError::Open {
-                    port: t.gpio_chip.clone(),
-                    message: "the gpio trigger backend is not built into this binary (rebuild with `--features gpio`)".into(),
-                })
+        let (port, backend): (&str, &'static str) = match t.backend {
+            TriggerBackend::None => {
+                return Ok(Trigger::new(
+                    Box::new(NoRelay),
+                    t.relay_pulse_ms,
+                    t.relay_pulse_ms_max,
+                ))
             }
-            TriggerBackend::Sim => {
-                let port = sim_port.ok_or_else(|| TriggerError::Open {
+            TriggerBackend::Serial => (&t.port, "serial"),
+            TriggerBackend::Gpio => (&t.gpio_chip, "gpio"),
+            TriggerBackend::Sim => (
+                sim_port.ok_or_else(|| TriggerError::Open {
                     port: "sim".into(),
                     message: "no simulated lab was set up".into(),
-                })?;
-                // The simulated module speaks LCUS, whatever the config says for real modules.
-                let lcus = crate::config::TriggerConfig {
-                    protocol: crate::config::RelayProtocol::Lcus,
-                    ..t.clone()
-                };
-                Box::new(serial::SerialRelay::open(&lcus, port, "sim")?)
+                })?,
+                "sim",
+            ),
+        };
+        let relay: Box<dyn Relay> = match guard::executable() {
+            Some(exe) => {
+                let info = open_info(t, port, backend);
+                Box::new(guard::GuardedRelay::spawn(exe, t, port, backend, info)?)
             }
+            None => open_direct(t, port, backend)?,
         };
         Ok(Trigger::new(relay, t.relay_pulse_ms, t.relay_pulse_ms_max))
     }

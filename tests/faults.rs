@@ -1,0 +1,336 @@
+//! The fault matrix: `impactcam capture` (and the daemon) against a relay-module emulator on a
+//! pseudo-terminal that logs every byte, with one fault injected per row. At the end of each
+//! row: whether the relay ever closed, whether it is open now, the session's status, whether
+//! its frames read back, leftover temporary files, and the exit code. The matrix is printed.
+
+use impactcam::trigger::emulator::{Emulator, Kind};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A config recording from the simulated camera, with the relay on the emulator's port.
+fn config(port: &str, recording: &str, trigger: &str) -> String {
+    format!(
+        "[trigger]\nbackend = \"serial\"\nport = \"{port}\"\nprotocol = \"lcus\"\n{trigger}\n[recording]\ndir = \"sessions\"\n{recording}\n"
+    )
+}
+
+fn spawn_capture(dir: &Path, cfg: &str) -> Child {
+    std::fs::write(dir.join("c.toml"), cfg).unwrap();
+    Command::new(env!("CARGO_BIN_EXE_impactcam"))
+        .args(["capture", "--config", "c.toml"])
+        .current_dir(dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+fn signal(child: &Child, sig: &str) {
+    assert!(Command::new("kill")
+        .args([sig, &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+}
+
+/// Waits until the emulator has heard the relay close (the firing), at most 20 s.
+fn wait_closed(emu: &Emulator) -> Instant {
+    let t0 = Instant::now();
+    loop {
+        if let Some((at, _)) = emu.switches().iter().find(|(_, closed)| *closed) {
+            return *at;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "the relay never closed"
+        );
+    }
+}
+
+struct Row {
+    fault: &'static str,
+    phase: &'static str,
+    fired: bool,
+    open_at_end: bool,
+    status: String,
+    frames_readable: String,
+    temp_files: usize,
+    exit: String,
+}
+
+/// What is on disk and on the wire after a row.
+fn observe(
+    fault: &'static str,
+    phase: &'static str,
+    dir: &Path,
+    emu: &Emulator,
+    exit: Option<i32>,
+) -> Row {
+    let switches = emu.switches();
+    let sessions: Vec<_> = std::fs::read_dir(dir.join("sessions"))
+        .map(|d| d.filter_map(|e| e.ok()).map(|e| e.path()).collect())
+        .unwrap_or_default();
+    let (status, frames_readable, temp_files) = match sessions.as_slice() {
+        [] => ("none".to_string(), "-".to_string(), 0),
+        [s] => {
+            let status = std::fs::read_to_string(s.join("session.json"))
+                .ok()
+                .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+                .and_then(|m| m["status"].as_str().map(String::from))
+                .unwrap_or_else(|| "unreadable".into());
+            let readable = match impactcam::session::SessionReader::open(s) {
+                Ok(mut r) => {
+                    let mut buf = Vec::new();
+                    let n = r.frames.len();
+                    let ok = (0..n).all(|k| r.read_frame(k, &mut buf).is_ok());
+                    format!("{n} {}", if ok { "ok" } else { "UNREADABLE" })
+                }
+                Err(e) => format!("error: {e}"),
+            };
+            let temps = std::fs::read_dir(s)
+                .unwrap()
+                .filter_map(|e| e.ok())
+                .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+                .count();
+            (status, readable, temps)
+        }
+        more => (format!("{} sessions", more.len()), "-".into(), 0),
+    };
+    Row {
+        fault,
+        phase,
+        fired: switches.iter().any(|(_, closed)| *closed),
+        open_at_end: switches.last().is_none_or(|(_, closed)| !closed),
+        status,
+        frames_readable,
+        temp_files,
+        exit: exit.map_or("signal".into(), |c| c.to_string()),
+    }
+}
+
+fn print_matrix(rows: &[Row]) {
+    println!(
+        "\n{:<28} {:<14} {:<6} {:<9} {:<11} {:<22} {:<5} exit",
+        "fault", "phase", "fired", "open now", "session", "frames read back", "tmp"
+    );
+    for r in rows {
+        println!(
+            "{:<28} {:<14} {:<6} {:<9} {:<11} {:<22} {:<5} {}",
+            r.fault,
+            r.phase,
+            r.fired,
+            r.open_at_end,
+            r.status,
+            r.frames_readable,
+            r.temp_files,
+            r.exit
+        );
+    }
+}
+
+/// Faults before firing: the relay must never close and nothing may be written.
+fn before_firing(fault: &'static str, recording: &str, trigger: &str, port: Option<&str>) -> Row {
+    let emu = Emulator::start(Kind::Lcus).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    if fault == "unusable dir (a file)" {
+        std::fs::write(tmp.path().join("sessions"), b"x").unwrap();
+    }
+    let cfg = config(port.unwrap_or(emu.path()), recording, trigger);
+    let out = spawn_capture(tmp.path(), &cfg).wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.contains("error")).collect();
+    assert_eq!(
+        lines.len(),
+        1,
+        "{fault}: one error line expected:\n{stderr}"
+    );
+    let mut row = observe(fault, "before firing", tmp.path(), &emu, out.status.code());
+    if fault == "unusable dir (a file)" {
+        row.status = "none (dir is a file)".into();
+    }
+    row
+}
+
+/// Faults while recording: the relay must be open at the end and the frames kept.
+fn while_recording(fault: &'static str, sig: Option<&str>, recording: &str) -> Row {
+    let emu = Emulator::start(Kind::Lcus).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = config(
+        emu.path(),
+        recording,
+        "relay_pulse_ms = 3000.0\nrelay_pulse_ms_max = 5000.0\n",
+    );
+    let mut child = spawn_capture(tmp.path(), &cfg);
+    let fired_at = wait_closed(&emu);
+    // Mid-pulse (the pulse lasts 3 s), with frames being written.
+    std::thread::sleep(Duration::from_millis(300));
+    let mut opened_after: Option<Duration> = None;
+    if let Some(sig) = sig {
+        signal(&child, sig);
+        let killed_at = Instant::now();
+        // The relay must open again soon after, whoever opens it.
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(3) {
+            if let Some((at, _)) = emu
+                .switches()
+                .iter()
+                .find(|(at, closed)| !closed && *at > fired_at)
+            {
+                opened_after = Some(at.saturating_duration_since(killed_at));
+                break;
+            }
+        }
+    }
+    let status = child.wait().unwrap();
+    let row = observe(fault, "mid-pulse", tmp.path(), &emu, status.code());
+    if let Some(sig) = sig {
+        let opened =
+            opened_after.unwrap_or_else(|| panic!("{fault}: relay not opened after {sig}"));
+        assert!(
+            opened < Duration::from_millis(500),
+            "{fault}: relay opened {opened:?} after the signal"
+        );
+        println!(
+            "{fault}: relay opened {:.1} ms after the signal",
+            opened.as_secs_f64() * 1e3
+        );
+    }
+    row
+}
+
+#[test]
+fn fault_matrix() {
+    let mut rows = Vec::new();
+    // Before firing.
+    rows.push(before_firing(
+        "bad config (frames 2^32-1)",
+        "frames = 4294967295",
+        "",
+        None,
+    ));
+    rows.push(before_firing("unusable dir (a file)", "", "", None));
+    rows.push(before_firing(
+        "disk too small",
+        "pre_trigger_frames = 1\nframes = 1000000\n[camera]\nwidth = 2048\nheight = 2048",
+        "",
+        None,
+    ));
+    rows.push(before_firing(
+        "relay port gone",
+        "",
+        "",
+        Some("/dev/impactcam-no-such-port"),
+    ));
+    rows.push(before_firing(
+        "pulse above its maximum",
+        "",
+        "relay_pulse_ms = 900.0\nrelay_pulse_ms_max = 500.0",
+        None,
+    ));
+    for r in &rows {
+        assert!(!r.fired, "{}: the relay closed", r.fault);
+        assert_eq!(r.exit, "1", "{}", r.fault);
+        assert!(r.status.starts_with("none"), "{}: {}", r.fault, r.status);
+    }
+    // While recording.
+    let during = [
+        (
+            "SIGINT",
+            Some("-INT"),
+            "frames = 5000",
+            "incomplete",
+            Some(130),
+        ),
+        (
+            "SIGTERM",
+            Some("-TERM"),
+            "frames = 5000",
+            "incomplete",
+            Some(130),
+        ),
+        ("SIGKILL", Some("-KILL"), "frames = 5000", "recording", None),
+        (
+            "abort (SIGABRT)",
+            Some("-ABRT"),
+            "frames = 5000",
+            "recording",
+            None,
+        ),
+        (
+            "camera disconnect",
+            None,
+            "frames = 400\n[sim]\ndisconnect_after_frames = 200",
+            "incomplete",
+            Some(1),
+        ),
+    ];
+    for (fault, sig, recording, want_status, want_exit) in during {
+        let row = while_recording(fault, sig, recording);
+        assert!(row.fired, "{fault}: never fired");
+        assert!(row.open_at_end, "{fault}: relay left closed");
+        assert_eq!(row.status, want_status, "{fault}");
+        assert!(
+            row.frames_readable.ends_with(" ok"),
+            "{fault}: {}",
+            row.frames_readable
+        );
+        assert_eq!(row.temp_files, 0, "{fault}");
+        assert_eq!(
+            row.exit,
+            want_exit.map_or("signal".into(), |c: i32| c.to_string()),
+            "{fault}"
+        );
+        rows.push(row);
+    }
+    // An oversize request to the daemon.
+    rows.push(daemon_oversize_request());
+    print_matrix(&rows);
+}
+
+/// `{"frames": 4294967295}` to the daemon: a 400, nothing fired, the daemon still up.
+fn daemon_oversize_request() -> Row {
+    let emu = Emulator::start(Kind::Lcus).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(tmp.path().join("c.toml"), config(emu.path(), "", "")).unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_impactcam"))
+        .args(["serve", "--config", "c.toml", "--listen", "127.0.0.1:0"])
+        .current_dir(tmp.path())
+        .env_remove("IMPACTCAM_TOKEN")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let addr = line
+        .trim()
+        .trim_start_matches("listening on http://")
+        .to_string();
+    let body = r#"{"frames": 4294967295}"#;
+    let mut s = std::net::TcpStream::connect(&addr).unwrap();
+    write!(s, "POST /api/experiments HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}", body.len()).unwrap();
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).unwrap();
+    assert!(answer.starts_with("HTTP/1.1 400"), "{answer}");
+    assert!(answer.contains("recording.frames"), "{answer}");
+    let still_up = child.try_wait().unwrap().is_none();
+    signal(&child, "-TERM");
+    let status = child.wait().unwrap();
+    let mut row = observe(
+        "oversize API request",
+        "request",
+        tmp.path(),
+        &emu,
+        status.code(),
+    );
+    assert!(
+        still_up && !row.fired && row.status == "none",
+        "oversize request"
+    );
+    row.exit = format!("400, then {}", row.exit);
+    row
+}
