@@ -60,13 +60,20 @@ enum Command {
         /// CSV of digitised centres: frame,sphere,view,u,v[,time_s].
         #[arg(long)]
         tracks: Option<PathBuf>,
+        /// The config to analyse with. A session uses its own recorded config without it; a
+        /// TIFF stack or --tracks needs one.
         #[arg(long)]
-        config: PathBuf,
+        config: Option<PathBuf>,
+        /// Print the report as JSON on stdout instead of the summary.
         #[arg(long)]
         json: bool,
         /// Where report.json goes (default: beside the input).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace a session's recorded report.json with one from another --config (without
+        /// this, that is refused: `replay` compares against the recorded report).
+        #[arg(long)]
+        overwrite: bool,
     },
     /// The lab daemon: HTTP API and web page to run and watch experiments.
     Serve {
@@ -232,7 +239,14 @@ fn main() {
             std::process::exit(1);
         }
     }
-    let cli = Cli::parse();
+    // Usage errors exit 1 like every other error; 2 is kept for "replay differs".
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            std::process::exit(if e.use_stderr() { 1 } else { 0 });
+        }
+    };
     let format = match cli.log_format {
         Some(f) => f,
         None => match std::env::var("IMPACTCAM_LOG_FORMAT").as_deref() {
@@ -244,12 +258,18 @@ fn main() {
             }
         },
     };
+    use std::io::IsTerminal;
+    // Colour codes only for a person at a terminal, never into a redirected log.
     let logs = tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
         .with_target(false);
     match format {
         LogFormat::Human => logs.init(),
-        LogFormat::Json => logs.json().flatten_event(true).init(),
+        LogFormat::Json => {
+            logs.json().flatten_event(true).init();
+            impactcam::summary::set_json_progress(true);
+        }
     }
     match real_main(cli) {
         Ok(code) => std::process::exit(code),
@@ -264,10 +284,10 @@ fn main() {
 fn interrupted_or(e: experiment::ExperimentError) -> Result<i32> {
     match e {
         experiment::ExperimentError::Record(impactcam::recorder::RecordError::Interrupted(dir)) => {
-            eprintln!(
+            Status::new().line(&format!(
                 "interrupted: relay released; session {} marked incomplete",
                 dir.display()
-            );
+            ));
             Ok(130)
         }
         e => Err(e.into()),
@@ -343,12 +363,16 @@ fn real_main(cli: Cli) -> Result<i32> {
                 print!("{}", report_text(&report));
             }
             match recorded {
-                Some(r) if r == text => eprintln!("replay: identical to the recorded report.json"),
+                Some(r) if r == text => {
+                    Status::new().line("replay: identical to the recorded report.json")
+                }
                 Some(_) => {
-                    eprintln!("replay: DIFFERS from the recorded report.json");
+                    Status::new().line("replay: DIFFERS from the recorded report.json");
                     return Ok(2);
                 }
-                None => eprintln!("replay: the session has no report.json to compare with"),
+                None => {
+                    Status::new().line("replay: the session has no report.json to compare with")
+                }
             }
             Ok(0)
         }
@@ -358,11 +382,16 @@ fn real_main(cli: Cli) -> Result<i32> {
             config,
             json,
             out,
+            overwrite,
         } => {
-            let cfg = Config::load(&config)?;
+            let given = config.as_deref().map(Config::load).transpose()?;
+            let needs_config = || {
+                anyhow::anyhow!("--config: missing, expected the config that describes this footage (a session uses its own; a TIFF stack or --tracks needs one)")
+            };
             let path = match (path, tracks) {
                 (Some(p), _) => p,
                 (None, Some(t)) => {
+                    let cfg = given.ok_or_else(needs_config)?;
                     let report = impactcam::analysis::analyze_tracks(&t, &cfg)?;
                     let out_dir = out.unwrap_or_else(|| {
                         t.parent()
@@ -390,9 +419,18 @@ fn real_main(cli: Cli) -> Result<i32> {
                 }
                 (None, None) => bail!("give a session, a TIFF stack, or --tracks FILE.csv"),
             };
+            if path.is_dir() && out.is_none() && given.is_some() && !overwrite {
+                if path.join("report.json").exists() {
+                    bail!(
+                        "{}: the session's recorded report.json would be replaced by one from another --config; give --out DIR, or --overwrite to replace it",
+                        path.display()
+                    );
+                }
+            }
             let report = if path.is_dir() {
-                experiment::analyze_session(&path, Some(&cfg), &mut |_, _| {})?
+                experiment::analyze_session(&path, given.as_ref(), &mut |_, _| {})?
             } else {
+                let cfg = given.ok_or_else(needs_config)?;
                 let stack = impactcam::session::tiff::TiffStack::open(&path)?;
                 let mut src = impactcam::analysis::TiffSource::new(stack, cfg.camera.frame_rate_hz);
                 impactcam::analysis::analyze(&mut src, &cfg, &mut |_, _| {})?
@@ -473,7 +511,7 @@ fn real_main(cli: Cli) -> Result<i32> {
             let mut skipped = Vec::new();
             let mut collisions = impactcam::campaign::load(&paths, &mut skipped)?;
             for s in &skipped {
-                eprintln!("skipped: {s}");
+                Status::new().line(&format!("skipped: {s}"));
             }
             if collisions.is_empty() {
                 bail!("no collision with a measured e among the given reports");

@@ -89,14 +89,25 @@ pub fn report_text(r: &Report) -> String {
 /// A one-line live status on a terminal; plain milestone lines otherwise.
 pub struct Status {
     tty: bool,
+    json: bool,
     last_len: usize,
+}
+
+static JSON_PROGRESS: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// With `--log-format json`, progress lines go out as log events (one JSON object per line)
+/// instead of text.
+pub fn set_json_progress(on: bool) {
+    JSON_PROGRESS.store(on, std::sync::atomic::Ordering::Relaxed);
 }
 
 impl Status {
     pub fn new() -> Status {
         use std::io::IsTerminal;
+        let json = JSON_PROGRESS.load(std::sync::atomic::Ordering::Relaxed);
         Status {
-            tty: std::io::stderr().is_terminal(),
+            tty: std::io::stderr().is_terminal() && !json,
+            json,
             last_len: 0,
         }
     }
@@ -112,6 +123,10 @@ impl Status {
 
     /// A line that stays.
     pub fn line(&mut self, text: &str) {
+        if self.json {
+            tracing::info!(progress = true, "{text}");
+            return;
+        }
         if self.tty && self.last_len > 0 {
             eprint!("\r{}\r", " ".repeat(self.last_len));
             self.last_len = 0;

@@ -81,16 +81,17 @@ pub fn read(
                 kind.name()
             ))
         })?;
-        let u: f64 = at(cu)
-            .parse()
-            .map_err(|_| bad(&format!("u {:?} is not a number", at(cu))))?;
-        let v: f64 = at(cvv)
-            .parse()
-            .map_err(|_| bad(&format!("v {:?} is not a number", at(cvv))))?;
+        let number = |name: &str, i: usize| -> Result<f64, AnalysisError> {
+            at(i)
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| bad(&format!("{name} {:?} is not a finite number", at(i))))
+        };
+        let u = number("u", cu)?;
+        let v = number("v", cvv)?;
         let time_s = match ct {
-            Some(i) if !at(i).is_empty() => at(i)
-                .parse()
-                .map_err(|_| bad(&format!("time_s {:?} is not a number", at(i))))?,
+            Some(i) if !at(i).is_empty() => number("time_s", i)?,
             _ => frame as f64 / frame_rate_hz,
         };
         let f = frames.entry(frame).or_insert_with(|| FrameObs {

@@ -84,8 +84,40 @@ fn read_report(path: &Path) -> Result<Report, CampaignError> {
         }
         None => return Err(input(path, "not an impactcam report (no schema field)")),
     }
-    serde_json::from_value(v)
-        .map_err(|e| input(path, format!("not a valid {REPORT_SCHEMA} report: {e}")))
+    let report: Report = serde_json::from_value(v)
+        .map_err(|e| input(path, format!("not a valid {REPORT_SCHEMA} report: {e}")))?;
+    check_report_numbers(&report).map_err(|m| input(path, m))?;
+    Ok(report)
+}
+
+/// The numbers a fit uses, finite and in range: e in [0, 2] (a measured e may pass 1 by its
+/// noise, never by 2), ψ and β finite, every uncertainty finite and ≥ 0.
+fn check_report_numbers(r: &Report) -> Result<(), String> {
+    let check = |key: &str, value: f64, sigma: f64, range: Option<(f64, f64)>| {
+        if !value.is_finite() || range.is_some_and(|(lo, hi)| !(lo..=hi).contains(&value)) {
+            let want = range.map_or("a finite number".to_string(), |(lo, hi)| {
+                format!("a number in [{lo}, {hi}]")
+            });
+            return Err(format!(
+                "{key}.value: {value} is out of range, expected {want}"
+            ));
+        }
+        if !(sigma.is_finite() && sigma >= 0.0) {
+            return Err(format!(
+                "{key}.uncertainty: {sigma} is out of range, expected a finite number ≥ 0"
+            ));
+        }
+        Ok(())
+    };
+    if let Some(e) = &r.e {
+        check("e", e.value, e.uncertainty, Some((0.0, 2.0)))?;
+    }
+    for (key, x) in [("psi1", &r.psi1), ("psi2", &r.psi2), ("beta", &r.beta)] {
+        if let Some(x) = x {
+            check(key, x.value, x.uncertainty, None)?;
+        }
+    }
+    Ok(())
 }
 
 /// Collisions from report files, session directories, or campaign directories (their
@@ -343,6 +375,9 @@ pub struct SweepPlan {
     pub entries: Vec<SweepEntry>,
 }
 
+/// Most values a sweep range may give (a campaign of more is a typo).
+pub const MAX_RANGE_VALUES: usize = 10_000;
+
 /// Parses "a:b:step" (inclusive) or a single value.
 pub fn parse_range(text: &str, what: &str) -> Result<Vec<f64>, String> {
     let parts: Vec<&str> = text.split(':').collect();
@@ -352,15 +387,27 @@ pub fn parse_range(text: &str, what: &str) -> Result<Vec<f64>, String> {
             .map_err(|_| format!("{what}: {s:?} is not a number, expected a or a:b:step"))
     };
     match parts.as_slice() {
-        [a] => Ok(vec![num(a)?]),
+        [a] => {
+            let a = num(a)?;
+            if !a.is_finite() {
+                return Err(format!("{what}: {text:?} expected a finite number"));
+            }
+            Ok(vec![a])
+        }
         [a, b, step] => {
             let (a, b, step) = (num(a)?, num(b)?, num(step)?);
-            if step <= 0.0 || b < a {
+            if !(a.is_finite() && b.is_finite() && step.is_finite()) || step <= 0.0 || b < a {
                 return Err(format!(
-                    "{what}: {text:?} expected a:b:step with a ≤ b and step > 0"
+                    "{what}: {text:?} expected a:b:step with finite a ≤ b and step > 0"
                 ));
             }
-            let n = ((b - a) / step + 1e-9).floor() as usize;
+            let steps = ((b - a) / step + 1e-9).floor();
+            if !(steps < MAX_RANGE_VALUES as f64) {
+                return Err(format!(
+                    "{what}: {text:?} gives {steps:.0} values, expected at most {MAX_RANGE_VALUES}"
+                ));
+            }
+            let n = steps as usize;
             Ok((0..=n).map(|k| a + step * k as f64).collect())
         }
         _ => Err(format!("{what}: {text:?} expected a or a:b:step")),

@@ -369,24 +369,10 @@ fn progress_json(ev: &ExpEvent) -> Value {
 }
 
 async fn start(State(state): State<Shared>, body: Bytes) -> Response {
-    let overrides: Overrides = if body.iter().all(|b| b.is_ascii_whitespace()) {
-        Overrides::default()
-    } else {
-        match serde_json::from_slice(&body) {
-            Ok(o) => o,
-            Err(e) => return error(StatusCode::BAD_REQUEST, format!("request body: {e}")),
-        }
+    let (cfg, overrides) = match experiment_config(&body, &state.cfg) {
+        Ok(x) => x,
+        Err(e) => return error(StatusCode::BAD_REQUEST, format!("request body: {e}")),
     };
-    let mut cfg = state.cfg.clone();
-    if let Some(f) = overrides.frames {
-        cfg.recording.frames = f;
-    }
-    if let Some(a) = overrides.tube_angle_deg {
-        cfg.sim.tube_angle_deg = a;
-    }
-    if let Err(e) = cfg.validate() {
-        return error(StatusCode::BAD_REQUEST, format!("request body: {e}"));
-    }
     let mut running = lock(&state.running);
     if let Some((id, handle)) = running.as_ref() {
         if !handle.is_finished() {
@@ -503,6 +489,26 @@ async fn start(State(state): State<Shared>, body: Bytes) -> Response {
     });
     *running = Some((id.clone(), handle));
     (StatusCode::ACCEPTED, Json(json!({ "id": id }))).into_response()
+}
+
+/// The config of one experiment: `base` with the request body's overrides (JSON, or empty for
+/// none), validated like any config — so every size a request can set is bounded before it
+/// reaches the recorder.
+pub fn experiment_config(body: &[u8], base: &Config) -> Result<(Config, Overrides), String> {
+    let overrides: Overrides = if body.iter().all(|b| b.is_ascii_whitespace()) {
+        Overrides::default()
+    } else {
+        serde_json::from_slice(body).map_err(|e| e.to_string())?
+    };
+    let mut cfg = base.clone();
+    if let Some(f) = overrides.frames {
+        cfg.recording.frames = f;
+    }
+    if let Some(a) = overrides.tube_angle_deg {
+        cfg.sim.tube_angle_deg = a;
+    }
+    cfg.validate()?;
+    Ok((cfg, overrides))
 }
 
 fn record_json(id: &str, r: &Record) -> Value {

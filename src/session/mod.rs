@@ -335,6 +335,64 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SessionError> {
     Ok(())
 }
 
+/// Largest frame side a session may declare, px (as `camera.width`/`height`).
+pub const MAX_SIDE_PX: u32 = 16_384;
+
+/// The index's lines: `frame_id,timestamp_ns`, ids strictly increasing, timestamps rising
+/// with them, and no step in time implausible for the step in ids at `frame_rate_hz` (more
+/// than 100 periods per id, plus a second). A line cut short by a crash (no newline) ends the
+/// index. Errors name the line.
+pub fn parse_index(text: &str, frame_rate_hz: f64) -> Result<Vec<FrameMeta>, String> {
+    let period_ns = if frame_rate_hz.is_finite() && frame_rate_hz > 0.0 {
+        1e9 / frame_rate_hz
+    } else {
+        1e9
+    };
+    let mut frames: Vec<FrameMeta> = Vec::new();
+    for (lineno, line) in text.split_inclusive('\n').enumerate().skip(1) {
+        let Some(line) = line.strip_suffix('\n') else {
+            break;
+        };
+        let n = lineno + 1;
+        let mut parts = line.split(',');
+        let parse = |p: Option<&str>| p.and_then(|s| s.trim().parse::<u64>().ok());
+        let (Some(frame_id), Some(timestamp_ns), None) =
+            (parse(parts.next()), parse(parts.next()), parts.next())
+        else {
+            return Err(format!(
+                "line {n}: expected frame_id,timestamp_ns (two whole numbers)"
+            ));
+        };
+        if let Some(prev) = frames.last() {
+            if frame_id <= prev.frame_id {
+                return Err(format!(
+                    "line {n}: frame id {frame_id} after {}, expected ids strictly increasing",
+                    prev.frame_id
+                ));
+            }
+            if timestamp_ns <= prev.timestamp_ns {
+                return Err(format!(
+                    "line {n}: timestamp {timestamp_ns} ns after {} ns, expected time to rise",
+                    prev.timestamp_ns
+                ));
+            }
+            let ids = (frame_id - prev.frame_id) as f64;
+            let dt = (timestamp_ns - prev.timestamp_ns) as f64;
+            if dt > ids * period_ns * 100.0 + 1e9 {
+                return Err(format!(
+                    "line {n}: timestamp {timestamp_ns} ns is {:.3} s after the previous frame, implausible for {ids} frame(s) at {frame_rate_hz} Hz",
+                    dt / 1e9
+                ));
+            }
+        }
+        frames.push(FrameMeta {
+            frame_id,
+            timestamp_ns,
+        });
+    }
+    Ok(frames)
+}
+
 /// A recorded session opened for reading.
 pub struct SessionReader {
     pub dir: PathBuf,
@@ -390,40 +448,47 @@ impl SessionReader {
         let word =
             |i: usize| u32::from_le_bytes([header[i], header[i + 1], header[i + 2], header[i + 3]]);
         let (width, height, bpp) = (word(8), word(12), word(16) as usize);
-        if width == 0 || height == 0 || !(bpp == 1 || bpp == 2) {
+        let cam = &manifest.camera;
+        if (width, height, bpp) != (cam.width, cam.height, cam.pixel_format.bytes_per_pixel()) {
             return Err(SessionError::Format {
                 path: fpath,
-                message: format!("frame container says {width}×{height} at {bpp} bytes per pixel, expected a positive size at 1 or 2"),
+                message: format!(
+                    "frame container says {width}×{height} at {bpp} bytes per pixel, expected {}×{} at {} as session.json's camera says",
+                    cam.width,
+                    cam.height,
+                    cam.pixel_format.bytes_per_pixel()
+                ),
             });
         }
-        let frame_bytes = width as u64 * height as u64 * bpp as u64;
+        // The manifest's config is checked like any config (its camera size bounds the frames).
+        manifest
+            .config
+            .validate()
+            .map_err(|e| SessionError::Format {
+                path: mpath.clone(),
+                message: format!("config: {e}"),
+            })?;
+        if width == 0 || height == 0 || width > MAX_SIDE_PX || height > MAX_SIDE_PX {
+            return Err(SessionError::Format {
+                path: fpath,
+                message: format!(
+                    "frame container says {width}×{height}, expected 1 to {MAX_SIDE_PX} px each"
+                ),
+            });
+        }
+        let frame_bytes = u64::from(width) * u64::from(height) * bpp as u64;
         let len = file.metadata().map_err(|e| io_err(&fpath, e))?.len();
         let whole_frames = len.saturating_sub(FRAMES_HEADER_BYTES) / frame_bytes;
         let ipath = dir.join("frames.idx");
         let itext = std::fs::read_to_string(&ipath).map_err(|e| io_err(&ipath, e))?;
-        let mut frames = Vec::new();
-        for (lineno, line) in itext.split_inclusive('\n').enumerate().skip(1) {
-            // A line without its newline was cut short by a crash: the frame is not counted.
-            let Some(line) = line.strip_suffix('\n') else {
-                break;
-            };
-            let mut parts = line.split(',');
-            let parse = |p: Option<&str>| p.and_then(|s| s.trim().parse::<u64>().ok());
-            match (parse(parts.next()), parse(parts.next())) {
-                (Some(frame_id), Some(timestamp_ns)) => frames.push(FrameMeta {
-                    frame_id,
-                    timestamp_ns,
-                }),
-                _ => {
-                    return Err(SessionError::Format {
-                        path: ipath,
-                        message: format!("line {}: expected frame_id,timestamp_ns", lineno + 1),
-                    })
-                }
-            }
-        }
+        let frames =
+            parse_index(&itext, cam.frame_rate_hz).map_err(|message| SessionError::Format {
+                path: ipath.clone(),
+                message,
+            })?;
+        let mut frames = frames;
         let truncated = (frames.len() as u64).saturating_sub(whole_frames);
-        frames.truncate(whole_frames as usize);
+        frames.truncate(whole_frames.min(frames.len() as u64) as usize);
         Ok(SessionReader {
             dir: dir.to_path_buf(),
             manifest,
@@ -443,10 +508,18 @@ impl SessionReader {
     /// Raw bytes of frame `i` (by position in the session, not frame id).
     pub fn read_frame(&mut self, i: usize, buf: &mut Vec<u8>) -> Result<(), SessionError> {
         let n = self.frame_bytes();
-        buf.resize(n, 0);
         let fpath = self.dir.join("frames.bin");
+        if i >= self.frames.len() {
+            return Err(io_err(
+                &fpath,
+                format!("frame {i}: the session holds {} frames", self.frames.len()),
+            ));
+        }
+        buf.resize(n, 0);
+        // In range: i < frames.len() ≤ whole frames in the file, so the offset fits its length.
+        let offset = FRAMES_HEADER_BYTES + i as u64 * n as u64;
         self.file
-            .seek(SeekFrom::Start(FRAMES_HEADER_BYTES + (i * n) as u64))
+            .seek(SeekFrom::Start(offset))
             .and_then(|_| self.file.read_exact(buf))
             .map_err(|e| io_err(&fpath, format!("frame {i}: {e}")))
     }

@@ -9,6 +9,22 @@ use tiff::decoder::{Decoder, DecodingResult};
 use tiff::encoder::{colortype, TiffEncoder};
 use tiff::ColorType;
 
+/// Most pages a stack may have (as `recording.frames`).
+pub const MAX_PAGES: usize = crate::config::MAX_FRAMES as usize;
+/// Most pixel bytes a stack may hold: it is read into memory whole.
+pub const MAX_STACK_BYTES: u64 = 4 << 30;
+
+/// The decoder's own limits: one page's buffer at most the largest frame (16384² at 16 bits),
+/// tag values small (a crafted file cannot make it allocate gigabytes for one tag).
+fn decoder_limits() -> tiff::decoder::Limits {
+    let side = super::MAX_SIDE_PX as usize;
+    let mut l = tiff::decoder::Limits::default();
+    l.decoding_buffer_size = side * side * 2;
+    l.intermediate_buffer_size = side * side * 2;
+    l.ifd_value_size = 16 << 20;
+    l
+}
+
 /// A TIFF stack held in memory as raw little-endian frames.
 pub struct TiffStack {
     pub path: PathBuf,
@@ -33,9 +49,10 @@ impl TiffStack {
         })?;
         let mut dec = Decoder::new(BufReader::new(file))
             .map_err(|e| fmt_err(path, format!("not a readable TIFF: {e}")))?
-            .with_limits(tiff::decoder::Limits::unlimited());
+            .with_limits(decoder_limits());
         let mut frames = Vec::new();
         let (mut width, mut height, mut bpp) = (0, 0, 0);
+        let mut total_bytes = 0u64;
         loop {
             let page = frames.len();
             let (w, h) = dec
@@ -54,6 +71,32 @@ impl TiffStack {
                     ))
                 }
             };
+            if page >= MAX_PAGES {
+                return Err(fmt_err(
+                    path,
+                    format!("more than {MAX_PAGES} pages, expected at most that many frames"),
+                ));
+            }
+            if w == 0 || h == 0 || w > super::MAX_SIDE_PX || h > super::MAX_SIDE_PX {
+                return Err(fmt_err(
+                    path,
+                    format!(
+                        "page {page} is {w}×{h}, expected 1 to {} px each",
+                        super::MAX_SIDE_PX
+                    ),
+                ));
+            }
+            let page_bytes = u64::from(w) * u64::from(h) * page_bpp as u64;
+            if total_bytes + page_bytes > MAX_STACK_BYTES {
+                return Err(fmt_err(
+                    path,
+                    format!(
+                        "page {page}: the stack passes {} MiB, expected at most that much (split it)",
+                        MAX_STACK_BYTES >> 20
+                    ),
+                ));
+            }
+            total_bytes += page_bytes;
             if page == 0 {
                 (width, height, bpp) = (w, h, page_bpp);
             } else if (w, h, page_bpp) != (width, height, bpp) {
@@ -76,13 +119,13 @@ impl TiffStack {
                     ))
                 }
             };
-            if data.len() != (w * h) as usize * bpp {
+            if data.len() as u64 != page_bytes {
                 return Err(fmt_err(
                     path,
                     format!(
                         "page {page} holds {} bytes, expected {}",
                         data.len(),
-                        (w * h) as usize * bpp
+                        page_bytes
                     ),
                 ));
             }
@@ -114,13 +157,34 @@ impl TiffStack {
 }
 
 /// Writes every frame of a session into one multi-page TIFF.
+/// The file appears whole or not at all: it is written beside `out` under a temporary name,
+/// which is removed on any failure, and renamed over `out` at the end.
 pub fn export_session(session: &mut SessionReader, out: &Path) -> Result<usize, SessionError> {
+    let name = out
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = out.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
+    let written = write_stack(session, &tmp).and_then(|n| {
+        std::fs::rename(&tmp, out).map_err(|e| SessionError::Io {
+            path: out.into(),
+            message: e.to_string(),
+        })?;
+        Ok(n)
+    });
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
+}
+
+fn write_stack(session: &mut SessionReader, out: &Path) -> Result<usize, SessionError> {
     let file = File::create(out).map_err(|e| SessionError::Io {
         path: out.into(),
         message: e.to_string(),
     })?;
-    let mut enc =
-        TiffEncoder::new(BufWriter::new(file)).map_err(|e| fmt_err(out, e.to_string()))?;
+    let mut writer = BufWriter::new(file);
+    let mut enc = TiffEncoder::new(&mut writer).map_err(|e| fmt_err(out, e.to_string()))?;
     let (w, h) = (session.width, session.height);
     let mut buf = Vec::new();
     for i in 0..session.frames.len() {
@@ -136,5 +200,15 @@ pub fn export_session(session: &mut SessionReader, out: &Path) -> Result<usize, 
         };
         r.map_err(|e| fmt_err(out, format!("frame {i}: {e}")))?;
     }
+    // The encoder's BufWriter is flushed when it is dropped, silently: flush and sync here so
+    // that a full disk is an error, not a short file.
+    drop(enc);
+    let file = writer
+        .into_inner()
+        .map_err(|e| fmt_err(out, e.error().to_string()))?;
+    file.sync_all().map_err(|e| SessionError::Io {
+        path: out.into(),
+        message: e.to_string(),
+    })?;
     Ok(session.frames.len())
 }

@@ -1,0 +1,72 @@
+//! The inputs a user or a file can hand impactcam, as functions of raw bytes, for the fuzz
+//! targets in `fuzz/` and for the test that replays their committed corpora
+//! (`tests/fuzz_corpus.rs`). Each must return (an error is fine) and never panic, abort or
+//! allocate by a size it has not checked.
+
+use crate::config::Config;
+use std::path::Path;
+
+/// A config file's text.
+pub fn config(data: &[u8]) {
+    if let Ok(text) = std::str::from_utf8(data) {
+        let _ = Config::from_toml_str(text, "fuzz.toml");
+    }
+}
+
+/// A session directory: `data` is split at the first two `\0\0\0` marks into session.json,
+/// frames.idx and frames.bin, written into `dir`, opened, and every frame read.
+pub fn session(data: &[u8], dir: &Path) {
+    let mut parts = split3(data);
+    let (manifest, index, frames) = (parts.0, parts.1, std::mem::take(&mut parts.2));
+    if std::fs::write(dir.join("session.json"), manifest).is_err()
+        || std::fs::write(dir.join("frames.idx"), index).is_err()
+        || std::fs::write(dir.join("frames.bin"), frames).is_err()
+    {
+        return;
+    }
+    if let Ok(mut r) = crate::session::SessionReader::open(dir) {
+        let mut buf = Vec::new();
+        for k in 0..r.frames.len() {
+            let _ = r.read_frame(k, &mut buf);
+        }
+    }
+}
+
+/// A TIFF file, written to `path` and opened as a stack.
+pub fn tiff(data: &[u8], path: &Path) {
+    if std::fs::write(path, data).is_ok() {
+        let _ = crate::session::tiff::TiffStack::open(path);
+    }
+}
+
+/// A tracks CSV, written to `path` and analysed with the default config.
+pub fn tracks(data: &[u8], path: &Path) {
+    if std::fs::write(path, data).is_ok() {
+        let cfg = Config::default_config();
+        if let Ok(report) = crate::analysis::analyze_tracks(path, &cfg) {
+            // Whatever it prints is a number or says it is not measured, never NaN.
+            let text = crate::summary::report_text(&report);
+            assert!(!text.contains("NaN"), "{text}");
+        }
+    }
+}
+
+/// A request body for `POST /api/experiments`.
+pub fn api_body(data: &[u8]) {
+    let _ = crate::daemon::experiment_config(data, &Config::default_config());
+}
+
+fn split3(data: &[u8]) -> (&[u8], &[u8], Vec<u8>) {
+    let mark = b"\0\0\0";
+    let find = |d: &[u8]| d.windows(3).position(|w| w == mark);
+    match find(data) {
+        Some(i) => {
+            let rest = &data[i + 3..];
+            match find(rest) {
+                Some(j) => (&data[..i], &rest[..j], rest[j + 3..].to_vec()),
+                None => (&data[..i], rest, Vec::new()),
+            }
+        }
+        None => (data, &[], Vec::new()),
+    }
+}
