@@ -251,6 +251,13 @@ pub fn record(
     progress(Progress::Fired {
         session: session.dir().to_path_buf(),
     });
+    // A fail point for the fault matrix (tests/faults.rs): a panic with the relay closed.
+    // Debug builds only; a release binary has no such switch.
+    #[cfg(debug_assertions)]
+    if std::env::var_os("IMPACTCAM_TEST_PANIC_AFTER_FIRING").is_some() {
+        std::thread::sleep(Duration::from_millis(200));
+        panic!("IMPACTCAM_TEST_PANIC_AFTER_FIRING: a panic while the relay is closed");
+    }
 
     let mut failure: Option<String> = None;
     let mut pulse = Some(pulse);

@@ -17,9 +17,14 @@ fn config(port: &str, recording: &str, trigger: &str) -> String {
 }
 
 fn spawn_capture(dir: &Path, cfg: &str) -> Child {
+    spawn_capture_env(dir, cfg, &[])
+}
+
+fn spawn_capture_env(dir: &Path, cfg: &str, env: &[(&str, &str)]) -> Child {
     std::fs::write(dir.join("c.toml"), cfg).unwrap();
     Command::new(env!("CARGO_BIN_EXE_impactcam"))
         .args(["capture", "--config", "c.toml"])
+        .envs(env.iter().copied())
         .current_dir(dir)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
@@ -284,6 +289,10 @@ fn fault_matrix() {
         );
         rows.push(row);
     }
+    // A panic in the main process with the relay closed (a debug-build fail point).
+    rows.push(panic_mid_pulse());
+    // The relay's port vanishes mid-pulse (a USB module unplugged).
+    rows.push(port_gone_mid_pulse());
     // An oversize request to the daemon.
     rows.push(daemon_oversize_request());
     print_matrix(&rows);
@@ -333,4 +342,150 @@ fn daemon_oversize_request() -> Row {
     );
     row.exit = format!("400, then {}", row.exit);
     row
+}
+
+/// The main process panics after firing, mid-pulse: the relay opens at once, the session keeps
+/// its frames.
+fn panic_mid_pulse() -> Row {
+    let emu = Emulator::start(Kind::Lcus).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = config(
+        emu.path(),
+        "frames = 5000",
+        "relay_pulse_ms = 3000.0\nrelay_pulse_ms_max = 5000.0\n",
+    );
+    let child = spawn_capture_env(
+        tmp.path(),
+        &cfg,
+        &[("IMPACTCAM_TEST_PANIC_AFTER_FIRING", "1")],
+    );
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("IMPACTCAM_TEST_PANIC_AFTER_FIRING"),
+        "the fail point did not fire:\n{err}"
+    );
+    let switches = emu.switches();
+    let closed = switches.iter().find(|(_, c)| *c).expect("fired").0;
+    let opened = switches
+        .iter()
+        .find(|(at, c)| !c && *at > closed)
+        .expect("opened")
+        .0;
+    assert!(
+        opened - closed < Duration::from_millis(1500),
+        "relay held {:?} of a 3 s pulse",
+        opened - closed
+    );
+    let row = observe("panic", "mid-pulse", tmp.path(), &emu, out.status.code());
+    assert!(
+        row.open_at_end && row.frames_readable.ends_with(" ok"),
+        "panic: {}",
+        row.frames_readable
+    );
+    assert_eq!(row.status, "recording", "a panic cannot finalise");
+    row
+}
+
+/// The relay's serial port disappears mid-pulse: the recording ends with the relay error as
+/// its reason, frames kept, exit 1.
+fn port_gone_mid_pulse() -> Row {
+    let emu = Emulator::start(Kind::Lcus).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = config(
+        emu.path(),
+        "frames = 5000",
+        "relay_pulse_ms = 1000.0\nrelay_pulse_ms_max = 5000.0\n",
+    );
+    let child = spawn_capture(tmp.path(), &cfg);
+    wait_closed(&emu);
+    std::thread::sleep(Duration::from_millis(200));
+    let heard = emu.switches();
+    drop(emu); // the module and its port are gone
+    let out = child.wait_with_output().unwrap();
+    let probe = Emulator::start(Kind::Lcus).unwrap();
+    let mut row = observe(
+        "relay port gone",
+        "mid-pulse",
+        tmp.path(),
+        &probe,
+        out.status.code(),
+    );
+    row.fired = heard.iter().any(|(_, c)| *c);
+    let reason = std::fs::read_dir(tmp.path().join("sessions"))
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| std::fs::read_to_string(e.path().join("session.json")).unwrap_or_default())
+        .next()
+        .unwrap_or_default();
+    assert!(row.fired, "never fired");
+    assert_eq!(row.status, "incomplete", "{reason}");
+    assert!(
+        reason.contains("relay"),
+        "the reason must be the relay's: {reason}"
+    );
+    assert!(
+        row.frames_readable.ends_with(" ok"),
+        "{}",
+        row.frames_readable
+    );
+    assert_eq!(row.exit, "1");
+    row.open_at_end = false; // unknown: the module is gone (unpowered, it opens by itself)
+    row
+}
+
+/// The disk fills after firing (another writer takes the rest of a 400 MiB tmpfs in a private
+/// mount namespace): the frames already reserved are kept, the session ends `failed` with the
+/// disk's error, no temporary file is left, the relay is open. Needs root for the namespace.
+#[test]
+#[ignore = "needs root (a mount namespace with a small tmpfs): scripts/test runs it"]
+fn disk_full_after_firing() {
+    let emu = Emulator::start(Kind::Lcus).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = config(emu.path(), "frames = 4000", "relay_pulse_ms = 50.0\n")
+        .replace("dir = \"sessions\"", "dir = \"mnt/sessions\"");
+    std::fs::write(tmp.path().join("c.toml"), cfg).unwrap();
+    std::fs::create_dir(tmp.path().join("mnt")).unwrap();
+    // Fill the disk once the recording has started; keep the session's files to read back.
+    let script = format!(
+        "mount -t tmpfs -o size=400m tmpfs mnt || exit 97; \
+         \"{bin}\" capture --config c.toml 2>err.txt & pid=$!; \
+         while [ ! -d mnt/sessions ] || [ -z \"$(ls mnt/sessions)\" ]; do sleep 0.01; done; sleep 0.3; \
+         dd if=/dev/zero of=mnt/filler bs=1M >/dev/null 2>&1; \
+         wait $pid; rc=$?; rm -f mnt/filler; cp -r mnt/sessions sessions; echo $rc > rc.txt",
+        bin = env!("CARGO_BIN_EXE_impactcam")
+    );
+    let out = Command::new("unshare")
+        .args(["-m", "sh", "-c", &script])
+        .current_dir(tmp.path())
+        .output()
+        .unwrap();
+    assert_ne!(
+        out.status.code(),
+        Some(97),
+        "cannot mount a tmpfs (not root?)"
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rc: i32 = std::fs::read_to_string(tmp.path().join("rc.txt"))
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    let err = std::fs::read_to_string(tmp.path().join("err.txt")).unwrap_or_default();
+    let row = observe("disk full", "after firing", tmp.path(), &emu, Some(rc));
+    print_matrix(std::slice::from_ref(&row));
+    assert!(row.fired && row.open_at_end, "relay");
+    assert_eq!(row.status, "failed", "{err}");
+    assert!(err.contains("No space left"), "the disk's own error: {err}");
+    assert!(
+        row.frames_readable.ends_with(" ok"),
+        "{}",
+        row.frames_readable
+    );
+    assert_eq!(row.temp_files, 0);
+    assert_eq!(rc, 1);
 }

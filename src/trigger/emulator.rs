@@ -4,6 +4,7 @@
 
 use serialport::{SerialPort, TTYPort};
 use std::io::{Read, Write};
+use std::os::fd::AsRawFd;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -33,6 +34,12 @@ pub struct Emulator {
 impl Emulator {
     pub fn start(kind: Kind) -> std::io::Result<Emulator> {
         let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::other)?;
+        // Not inherited by processes the test starts: when the emulator goes, its port must
+        // go with it (as an unplugged module's does), not live on in a child.
+        for fd in [master.as_raw_fd(), slave.as_raw_fd()] {
+            // SAFETY: fcntl on descriptors this function owns.
+            unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) };
+        }
         master
             .set_timeout(Duration::from_millis(5))
             .map_err(std::io::Error::other)?;
