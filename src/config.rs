@@ -309,7 +309,7 @@ pub struct AnalysisConfig {
     pub threshold_fraction: f64,
     /// Rotation between frames from markers: "kabsch" (optimal) or "thesis" (the 1992
     /// 9-parameter least squares, for comparison).
-    pub rotation: crate::analysis::rotation::RotationMethod,
+    pub rotation: RotationMethod,
     /// Diameter of the painted markers; sets the window of their sub-pixel centroid.
     pub marker_diameter_mm: f64,
 }
@@ -320,7 +320,7 @@ impl Default for AnalysisConfig {
             min_frames_per_side: 5,
             gravity_mm_s2: hw_sim::GRAVITY_MM_S2,
             threshold_fraction: 0.5,
-            rotation: crate::analysis::rotation::RotationMethod::Kabsch,
+            rotation: RotationMethod::Kabsch,
             marker_diameter_mm: 1.0,
         }
     }
@@ -458,7 +458,7 @@ impl Config {
                 ("generic_off_hex", &t.generic_off_hex),
             ] {
                 if v.as_deref()
-                    .and_then(crate::trigger::serial::parse_hex)
+                    .and_then(parse_hex)
                     .is_none_or(|b| b.is_empty())
                 {
                     return Err(format!("trigger.{key}: missing or not hex bytes, expected e.g. \"A0 01 01 A2\" for protocol = \"generic\""));
@@ -466,7 +466,7 @@ impl Config {
             }
         }
         if let Some(r) = &t.generic_reply_hex {
-            if crate::trigger::serial::parse_hex(r).is_none() {
+            if parse_hex(r).is_none() {
                 return Err(format!("trigger.generic_reply_hex: {r:?} is not hex bytes"));
             }
         }
@@ -594,6 +594,23 @@ impl Config {
         self.sim.validate()?;
         Ok(())
     }
+}
+
+/// How rotations between frames are estimated from markers (`analysis.rotation`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RotationMethod {
+    /// Optimal rotation (Kabsch with determinant correction).
+    Kabsch,
+    /// The thesis's 9-parameter least squares.
+    Thesis,
+}
+
+/// "A0 01 01 A2" → bytes; None if any token is not a hex byte (`trigger.generic_*_hex`).
+pub fn parse_hex(text: &str) -> Option<Vec<u8>> {
+    text.split_whitespace()
+        .map(|t| u8::from_str_radix(t.trim_start_matches("0x"), 16).ok())
+        .collect()
 }
 
 /// Most frames one recording may save (a 1000 fps camera's 1000 s).

@@ -83,14 +83,37 @@ impl Rig {
         if let Some(lab) = &self.lab {
             lab.restage(&cfg.sim).map_err(ExperimentError::Sim)?;
         }
-        Ok(recorder::record(
-            &mut self.camera,
-            &self.trigger,
-            cfg,
-            abort,
-            &mut |p| on_event(Event::Recorder(p)),
-        )?)
+        let result = recorder::record(&mut self.camera, &self.trigger, cfg, abort, &mut |p| {
+            on_event(Event::Recorder(p))
+        });
+        // The simulator knows what really happened: its truth goes beside the frames, for
+        // every session that holds frames (an interrupted one too).
+        let dir = match &result {
+            Ok(rec) => Some(rec.session_dir.as_path()),
+            Err(RecordError::Interrupted(dir)) => Some(dir.as_path()),
+            Err(_) => None,
+        };
+        if let (Some(lab), Some(dir)) = (&self.lab, dir) {
+            write_truth(lab, dir)?;
+        }
+        Ok(result?)
     }
+}
+
+/// `truth.json`: the simulated lab's ground truth for the frames the session holds.
+fn write_truth(lab: &hw_sim::SimLab, dir: &Path) -> Result<(), ExperimentError> {
+    let reader = SessionReader::open(dir)?;
+    let pairs: Vec<(u64, u64)> = reader
+        .frames
+        .iter()
+        .map(|m| (m.frame_id, m.timestamp_ns))
+        .collect();
+    // The relay module hears us over a pseudo-terminal: let the last switch arrive before its
+    // log goes into the truth.
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    let text = serde_json::to_string_pretty(&lab.truth(&pairs)).unwrap_or_default();
+    write_atomic(&dir.join("truth.json"), text.as_bytes())?;
+    Ok(())
 }
 
 impl ExperimentError {

@@ -9,6 +9,7 @@ pub mod campaign;
 pub mod config;
 pub mod daemon;
 pub mod experiment;
+pub mod figures;
 pub mod fuzzing;
 pub mod recorder;
 pub mod session;

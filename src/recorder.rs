@@ -9,7 +9,7 @@
 
 use crate::camera::{Camera, CameraError, Frame};
 use crate::config::Config;
-use crate::session::{FrameMeta, ManifestTrigger, SessionError, SessionWriter, Status};
+use crate::session::{count_gaps, FrameMeta, ManifestTrigger, SessionError, SessionWriter, Status};
 use crate::trigger::{CameraLive, Trigger, TriggerError};
 use std::collections::VecDeque;
 use std::path::PathBuf;
@@ -352,18 +352,6 @@ pub fn record(
         let _ = session.finish(Status::Failed, Some(e.to_string()));
         return Err(e.into());
     }
-    if let Some(cam) = camera.as_ref() {
-        let pairs: Vec<(u64, u64)> = saved.iter().map(|m| (m.frame_id, m.timestamp_ns)).collect();
-        if let Some(truth) = cam.ground_truth(&pairs) {
-            let text = serde_json::to_string_pretty(&truth).unwrap_or_default();
-            if let Err(e) =
-                crate::session::write_atomic(&session.dir().join("truth.json"), text.as_bytes())
-            {
-                let _ = session.finish(Status::Failed, Some(e.to_string()));
-                return Err(e.into());
-            }
-        }
-    }
     let interrupted = abort.load(Ordering::Relaxed);
     let (status, reason) = match failure {
         None => (Status::Complete, None),
@@ -448,14 +436,6 @@ fn mem_available_bytes() -> Option<u64> {
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     kib.checked_mul(1024)
-}
-
-/// Frames lost between saved frames, from the device frame ids.
-pub fn count_gaps(frames: &[FrameMeta]) -> u64 {
-    frames
-        .windows(2)
-        .map(|w| w[1].frame_id.saturating_sub(w[0].frame_id + 1))
-        .sum()
 }
 
 /// What `stream_to_ram` measured.

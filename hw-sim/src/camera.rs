@@ -33,7 +33,8 @@ pub struct SimCamera {
 }
 
 impl SimCamera {
-    pub(crate) fn new(lab: Arc<SimLab>) -> SimCamera {
+    /// The lab's camera (one lab may have several: each renders the same scenario).
+    pub fn new(lab: Arc<SimLab>) -> SimCamera {
         let renderer = Renderer::new(lab.scene.clone(), lab.cfg.clone(), lab.cfg.seed);
         let rng = Rng::new(lab.cfg.seed ^ 0xD409);
         SimCamera {

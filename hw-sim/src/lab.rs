@@ -1,43 +1,15 @@
 //! The simulated lab as one object: the staged scenario, the lab clock (which is also the
 //! simulated camera's device clock), the relay on its pseudo-terminal, and the ground truth.
 
-use crate::camera::SimCamera;
-use crate::config::{LabConfig, Pace, Scene};
+use crate::clock::LabClock;
+use crate::config::{LabConfig, Scene};
 use crate::physics::Body;
 use crate::relay::{RelayEvent, RelayLog, SimRelay};
 use crate::render::project;
 use crate::scenario::Scenario;
 use crate::V3;
 use serde_json::{json, Value};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
-use std::time::Instant;
-
-/// Seconds since the lab started (real time), or the time of the frame being rendered
-/// (free-run): the device clock of the simulated camera either way.
-pub struct LabClock {
-    epoch: Instant,
-    pace: Pace,
-    free_run_now_bits: AtomicU64,
-}
-
-impl LabClock {
-    pub fn now_s(&self) -> f64 {
-        match self.pace {
-            Pace::RealTime => self.epoch.elapsed().as_secs_f64(),
-            Pace::FreeRun => f64::from_bits(self.free_run_now_bits.load(Ordering::Acquire)),
-        }
-    }
-    pub(crate) fn set_free_run_now(&self, t: f64) {
-        self.free_run_now_bits.store(t.to_bits(), Ordering::Release);
-    }
-    pub(crate) fn epoch(&self) -> Instant {
-        self.epoch
-    }
-    pub(crate) fn pace(&self) -> Pace {
-        self.pace
-    }
-}
 
 /// What is loaded in the tubes now: the scenario, and the lab time from which a relay closing
 /// releases it (closings before belong to earlier experiments).
@@ -66,11 +38,7 @@ impl SimLab {
             v.origin_px[1] += cfg.mirror_offset_error_px[1];
         }
         let scenario = Scenario::new(&cfg, &scene.spheres)?;
-        let clock = Arc::new(LabClock {
-            epoch: Instant::now(),
-            pace: cfg.pace,
-            free_run_now_bits: AtomicU64::new(0f64.to_bits()),
-        });
+        let clock = Arc::new(LabClock::new(cfg.pace));
         let log = Arc::new(Mutex::new(RelayLog::default()));
         let relay = SimRelay::spawn(clock.clone(), log.clone())
             .map_err(|e| format!("sim relay: cannot create a pseudo-terminal: {e}"))?;
@@ -166,10 +134,6 @@ impl SimLab {
         let b = sc.state_at(tau);
         let m = [sc.marker_positions(0, &b[0]), sc.marker_positions(1, &b[1])];
         (b, m)
-    }
-
-    pub fn camera(self: &Arc<Self>) -> SimCamera {
-        SimCamera::new(self.clone())
     }
 
     /// Ground truth for the given frames (frame id, device timestamp in ns), as JSON.

@@ -13,6 +13,7 @@
 //! impactcam.
 
 pub mod camera;
+pub mod clock;
 pub mod config;
 pub mod lab;
 pub mod physics;

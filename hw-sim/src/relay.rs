@@ -3,7 +3,7 @@
 //! port; this side decodes what arrives and logs, on the lab clock, when the relay closed and
 //! opened. The lab learns that the spheres were released only from this log.
 
-use crate::lab::LabClock;
+use crate::clock::LabClock;
 use serde::Serialize;
 use serialport::{SerialPort, TTYPort};
 use std::io::Read;

@@ -105,7 +105,7 @@ impl FrameSource for SessionSource {
         Ok(())
     }
     fn frames_dropped(&self) -> u64 {
-        crate::recorder::count_gaps(&self.reader.frames)
+        crate::session::count_gaps(&self.reader.frames)
     }
     fn dimensions(&self) -> (u32, u32) {
         (self.reader.width, self.reader.height)

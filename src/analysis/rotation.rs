@@ -15,14 +15,7 @@ use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 pub type V3 = Vector3<f64>;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum RotationMethod {
-    /// Optimal rotation (Kabsch with determinant correction).
-    Kabsch,
-    /// The thesis's 9-parameter least squares.
-    Thesis,
-}
+pub use crate::config::RotationMethod;
 
 /// R minimising Σ w |q − R p|² over rotations.
 pub fn kabsch(p: &[V3], q: &[V3], w: &[f64]) -> Option<Matrix3<f64>> {

@@ -12,8 +12,7 @@ pub mod sim;
 pub mod v4l;
 pub mod v4l_format;
 
-use crate::config::{CameraBackend, Config, PixelFormat};
-use serde::{Deserialize, Serialize};
+use crate::config::{CameraBackend, Config};
 use std::time::Instant;
 
 /// One frame as delivered by a camera.
@@ -29,22 +28,8 @@ pub struct Frame {
     pub data: Vec<u8>,
 }
 
-/// What a camera is; also the manifest's `camera` record.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct CameraInfo {
-    pub backend: String,
-    pub device: String,
-    pub width: u32,
-    pub height: u32,
-    pub pixel_format: PixelFormat,
-    pub frame_rate_hz: f64,
-}
-
-impl CameraInfo {
-    pub fn frame_bytes(&self) -> usize {
-        self.width as usize * self.height as usize * self.pixel_format.bytes_per_pixel()
-    }
-}
+/// What a camera is: the manifest's `camera` record (it belongs to the session format).
+pub use crate::session::CameraInfo;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CameraError {
@@ -65,10 +50,6 @@ pub trait Camera: Send {
     /// The next frame, written into `buf` (reused to avoid allocation on the hot path).
     fn next_frame(&mut self, buf: Vec<u8>) -> Result<Frame, CameraError>;
     fn stop(&mut self) -> Result<(), CameraError>;
-    /// Ground truth for the given (frame id, timestamp ns) pairs — only a simulator knows it.
-    fn ground_truth(&self, _frames: &[(u64, u64)]) -> Option<serde_json::Value> {
-        None
-    }
 }
 
 /// Opens the camera the config names. `lab` is the simulated lab when the rig is simulated.

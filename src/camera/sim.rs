@@ -6,16 +6,17 @@ use std::sync::Arc;
 use std::time::Instant;
 
 pub struct SimBackend {
-    lab: Arc<hw_sim::SimLab>,
+    /// Keeps the lab (its clock and relay) alive as long as its camera.
+    _lab: Arc<hw_sim::SimLab>,
     camera: hw_sim::SimCamera,
     info: CameraInfo,
 }
 
 impl SimBackend {
     pub fn new(lab: Arc<hw_sim::SimLab>, cfg: &CameraConfig) -> SimBackend {
-        let camera = lab.camera();
+        let camera = hw_sim::SimCamera::new(lab.clone());
         SimBackend {
-            lab,
+            _lab: lab,
             camera,
             info: CameraInfo {
                 backend: "sim".into(),
@@ -51,11 +52,5 @@ impl Camera for SimBackend {
     }
     fn stop(&mut self) -> Result<(), CameraError> {
         Ok(())
-    }
-    fn ground_truth(&self, frames: &[(u64, u64)]) -> Option<serde_json::Value> {
-        // The relay module hears us over a pseudo-terminal: let the last switch arrive before
-        // its log goes into the truth.
-        std::thread::sleep(std::time::Duration::from_millis(20));
-        Some(self.lab.truth(frames))
     }
 }

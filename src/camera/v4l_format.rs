@@ -172,6 +172,6 @@ mod tests {
                 timestamp_ns: 0,
             })
             .collect();
-        assert_eq!(crate::recorder::count_gaps(&metas), 1);
+        assert_eq!(crate::session::count_gaps(&metas), 1);
     }
 }

@@ -2,9 +2,7 @@
 //! experiments over tube angles, resumable), loading reports for the fit, and the campaign's
 //! outputs (CSV table, ψ2–ψ1 plot as SVG, HTML report). The physics of the fit is in `fit`.
 
-pub mod canvas;
 pub mod fit;
-mod font;
 pub mod plot;
 
 use crate::analysis::report::{Report, REPORT_SCHEMA};
@@ -326,8 +324,14 @@ pub fn write_outputs(
     let g = crate::config::AnalysisConfig::default().gravity_mm_s2;
     for c in collisions {
         for (kind, (svg_t, png_t)) in [
-            ("trajectory", plot::trajectory_plot(&c.report, g)),
-            ("residuals", plot::residual_plot(&c.report, g)),
+            (
+                "trajectory",
+                crate::figures::trajectory::trajectory_plot(&c.report, g),
+            ),
+            (
+                "residuals",
+                crate::figures::trajectory::residual_plot(&c.report, g),
+            ),
         ] {
             write_atomic(
                 &plots.join(format!("{}-{kind}.svg", c.source)),

@@ -619,7 +619,7 @@ async fn trajectory(State(state): State<Shared>, Path(id): Path<String>) -> Resp
         );
     };
     let (svg, _) =
-        crate::campaign::plot::trajectory_plot(&report, state.cfg.analysis.gravity_mm_s2);
+        crate::figures::trajectory::trajectory_plot(&report, state.cfg.analysis.gravity_mm_s2);
     ([("content-type", "image/svg+xml")], svg).into_response()
 }
 
@@ -636,7 +636,7 @@ async fn impact_frame(State(state): State<Shared>, Path(id): Path<String>) -> Re
     };
     let dir = state.cfg.recording.dir.join(session);
     let png = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
-        use crate::campaign::canvas::{Canvas, Raster};
+        use crate::figures::canvas::{Canvas, Raster};
         let report: crate::analysis::report::Report =
             serde_json::from_value(report).map_err(|e| e.to_string())?;
         let mut reader = crate::session::SessionReader::open(&dir).map_err(|e| e.to_string())?;

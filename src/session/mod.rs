@@ -5,11 +5,11 @@
 //! `config.toml`, and the analysis outputs. It knows nothing of cameras or analysis.
 
 pub mod disk;
+mod records;
 pub mod tiff;
 
-use crate::camera::CameraInfo;
 use crate::config::Config;
-use crate::trigger::TriggerInfo;
+pub use records::{CameraInfo, TriggerInfo};
 use serde::{Deserialize, Serialize};
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom, Write};
@@ -91,6 +91,17 @@ pub struct Manifest {
 pub struct FrameMeta {
     pub frame_id: u64,
     pub timestamp_ns: u64,
+}
+
+/// Frames lost between saved frames, from the device frame ids.
+pub fn count_gaps(frames: &[FrameMeta]) -> u64 {
+    frames
+        .windows(2)
+        .map(|w| {
+            w[1].frame_id
+                .saturating_sub(w[0].frame_id.saturating_add(1))
+        })
+        .sum()
 }
 
 /// Writes a session while it is recorded.

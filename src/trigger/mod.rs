@@ -12,7 +12,6 @@ pub mod guard;
 pub mod serial;
 
 use crate::config::{Config, TriggerBackend};
-use serde::Serialize;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -28,14 +27,8 @@ pub enum TriggerError {
     PulseTooLong { requested_ms: f64, max_ms: f64 },
 }
 
-/// What a session records about the trigger.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct TriggerInfo {
-    pub backend: String,
-    pub port: Option<String>,
-    pub protocol: Option<String>,
-    pub channel: Option<u8>,
-}
+/// What a relay is: the session format's record of it.
+pub use crate::session::TriggerInfo;
 
 /// A relay module: closes and opens one contact. Implementations do no timing.
 pub trait Relay: Send {

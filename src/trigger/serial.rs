@@ -9,7 +9,7 @@
 //!   optionally the bytes the module answers (`generic_reply_hex`), checked after each switch.
 
 use super::{Relay, TriggerError, TriggerInfo};
-use crate::config::{RelayProtocol, TriggerConfig};
+use crate::config::{parse_hex, RelayProtocol, TriggerConfig};
 use serialport::SerialPort;
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
@@ -23,13 +23,6 @@ pub fn lcus_frame(channel: u8, closed: bool) -> [u8; 4] {
         state,
         0xA0u8.wrapping_add(channel).wrapping_add(state),
     ]
-}
-
-/// "A0 01 01 A2" → bytes; None if any token is not a hex byte.
-pub fn parse_hex(text: &str) -> Option<Vec<u8>> {
-    text.split_whitespace()
-        .map(|t| u8::from_str_radix(t.trim_start_matches("0x"), 16).ok())
-        .collect()
 }
 
 enum Protocol {
