@@ -176,6 +176,27 @@ pub fn run_on(
     Ok((rec, report))
 }
 
+/// Analyses a session or a TIFF stack at `path` (`analysis::source::open`), with `cfg` when
+/// given, else the session's own recorded config.
+pub fn analyze_path(
+    path: &Path,
+    cfg: Option<&Config>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Report, ExperimentError> {
+    let mut src = analysis::source::open(path, cfg.map(|c| c.camera.frame_rate_hz))?;
+    let cfg = match cfg {
+        Some(c) => c.clone(),
+        None => src
+            .recorded_config()
+            .cloned()
+            .ok_or_else(|| AnalysisError::Input {
+                source_name: path.display().to_string(),
+                message: "no config: give --config".into(),
+            })?,
+    };
+    Ok(analysis::analyze(src.as_mut(), &cfg, progress)?)
+}
+
 /// Analyses a recorded session with its own config snapshot (or `cfg` when given).
 pub fn analyze_session(
     dir: &Path,

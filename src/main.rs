@@ -427,14 +427,10 @@ fn real_main(cli: Cli) -> Result<i32> {
                     );
                 }
             }
-            let report = if path.is_dir() {
-                experiment::analyze_session(&path, given.as_ref(), &mut |_, _| {})?
-            } else {
-                let cfg = given.ok_or_else(needs_config)?;
-                let stack = impactcam::session::tiff::TiffStack::open(&path)?;
-                let mut src = impactcam::analysis::TiffSource::new(stack, cfg.camera.frame_rate_hz);
-                impactcam::analysis::analyze(&mut src, &cfg, &mut |_, _| {})?
-            };
+            if !path.is_dir() && given.is_none() {
+                return Err(needs_config());
+            }
+            let report = experiment::analyze_path(&path, given.as_ref(), &mut |_, _| {})?;
             let out_dir = match out {
                 Some(d) => d,
                 None if path.is_dir() => path.clone(),

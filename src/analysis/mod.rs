@@ -8,30 +8,37 @@
 //! frames that could not be measured; it fails only when no honest result exists (no spheres,
 //! no impact, too few frames).
 
+mod calibration;
 pub mod circle;
 pub mod detect;
 pub mod geometry;
 pub mod image;
 pub mod kinematics;
 pub mod markers;
+mod phases;
 pub mod report;
 pub mod rotation;
+mod second_pass;
+pub mod source;
 pub mod spin;
 pub mod thesis;
 pub mod tracking;
 pub mod tracks;
+mod uncertainty;
 
 use crate::config::Config;
-use crate::session::tiff::TiffStack;
-use crate::session::{FrameMeta, SessionError, SessionReader};
-use circle::DotMask;
+use crate::session::SessionError;
 use geometry::{View, ViewKind};
-use image::GreyImage;
-use kinematics::{derive, uncertainties, Fits, ImpactError, Series, SideFit, Spins, V3};
-use nalgebra::Rotation3;
+use kinematics::{derive, ImpactError, SideFit, Spins, V3};
 use report::*;
 use rotation::SpinFit;
 use tracking::{DotMasks, FrameObs};
+
+use calibration::calibrate_mirror;
+use phases::{fit_all, flight_phases, phases_missing_axis, relift_on_trajectories};
+use second_pass::rim_dots;
+pub use source::{FrameSource, SessionSource, TiffSource};
+use uncertainty::{combined_uncertainties, spin_estimate};
 
 #[derive(Debug, thiserror::Error)]
 pub enum AnalysisError {
@@ -47,352 +54,6 @@ pub enum AnalysisError {
         source_name: String,
         message: String,
     },
-}
-
-/// Frames to analyse, from a session or from footage recorded elsewhere.
-pub trait FrameSource {
-    fn source(&self) -> Source;
-    fn len(&self) -> usize;
-    fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-    fn meta(&self, i: usize) -> FrameMeta;
-    fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError>;
-    fn frames_dropped(&self) -> u64;
-    fn dimensions(&self) -> (u32, u32);
-    /// Things about the input a reader of the report must know.
-    fn warnings(&self) -> Vec<String>;
-}
-
-pub struct SessionSource {
-    pub reader: SessionReader,
-    buf: Vec<u8>,
-}
-
-impl SessionSource {
-    pub fn new(reader: SessionReader) -> Self {
-        SessionSource {
-            reader,
-            buf: Vec::new(),
-        }
-    }
-}
-
-impl FrameSource for SessionSource {
-    fn source(&self) -> Source {
-        Source {
-            kind: "session".into(),
-            name: self.reader.manifest.id.clone(),
-            frames: self.reader.frames.len() as u64,
-            frame_rate_hz: self.reader.manifest.camera.frame_rate_hz,
-            timestamps: "device".into(),
-        }
-    }
-    fn len(&self) -> usize {
-        self.reader.frames.len()
-    }
-    fn meta(&self, i: usize) -> FrameMeta {
-        self.reader.frames[i]
-    }
-    fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
-        self.reader.read_frame(i, &mut self.buf)?;
-        img.load(
-            &self.buf,
-            self.reader.width as usize,
-            self.reader.height as usize,
-            self.reader.bytes_per_pixel,
-        );
-        Ok(())
-    }
-    fn frames_dropped(&self) -> u64 {
-        crate::session::count_gaps(&self.reader.frames)
-    }
-    fn dimensions(&self) -> (u32, u32) {
-        (self.reader.width, self.reader.height)
-    }
-    fn warnings(&self) -> Vec<String> {
-        let mut w = Vec::new();
-        if !self.reader.is_complete() {
-            w.push(format!(
-                "session status is {:?}{}: analysed the {} frames that were written",
-                self.reader.manifest.status,
-                self.reader
-                    .manifest
-                    .reason
-                    .as_ref()
-                    .map(|r| format!(" ({r})"))
-                    .unwrap_or_default(),
-                self.reader.frames.len()
-            ));
-        }
-        if self.reader.frames_truncated > 0 {
-            w.push(format!(
-                "{} frame(s) listed in the index were cut short on disk and ignored",
-                self.reader.frames_truncated
-            ));
-        }
-        w
-    }
-}
-
-pub struct TiffSource {
-    stack: TiffStack,
-    meta: Vec<FrameMeta>,
-    frame_rate_hz: f64,
-}
-
-impl TiffSource {
-    pub fn new(stack: TiffStack, frame_rate_hz: f64) -> Self {
-        let meta = stack.meta(frame_rate_hz);
-        TiffSource {
-            stack,
-            meta,
-            frame_rate_hz,
-        }
-    }
-}
-
-impl FrameSource for TiffSource {
-    fn source(&self) -> Source {
-        Source {
-            kind: "tiff".into(),
-            name: self
-                .stack
-                .path
-                .file_name()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default(),
-            frames: self.stack.frames.len() as u64,
-            frame_rate_hz: self.frame_rate_hz,
-            timestamps: "frame number / camera.frame_rate_hz".into(),
-        }
-    }
-    fn len(&self) -> usize {
-        self.stack.frames.len()
-    }
-    fn meta(&self, i: usize) -> FrameMeta {
-        self.meta[i]
-    }
-    fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
-        img.load(
-            &self.stack.frames[i],
-            self.stack.width as usize,
-            self.stack.height as usize,
-            self.stack.bytes_per_pixel,
-        );
-        Ok(())
-    }
-    fn frames_dropped(&self) -> u64 {
-        0
-    }
-    fn dimensions(&self) -> (u32, u32) {
-        (self.stack.width, self.stack.height)
-    }
-    fn warnings(&self) -> Vec<String> {
-        Vec::new()
-    }
-}
-
-/// Per-sphere coordinate series (x, y, z) in world mm over the given frames, built from the
-/// views: y from the direct view, z from the mirror, x from the direct view when there is one
-/// (the mirror's x is the calibration check).
-fn series(obs: &[FrameObs], views: &[View], s: usize, frames: &[usize]) -> [Series; 3] {
-    let mut out: [Series; 3] = [Vec::new(), Vec::new(), Vec::new()];
-    let has_direct = views.iter().any(|v| v.kind == ViewKind::Direct);
-    for f in frames.iter().map(|&k| &obs[k]) {
-        for (vi, view) in views.iter().enumerate() {
-            let Some(m) = &f.spheres[s][vi] else { continue };
-            for (axis, val) in view.unproject(m.centre_px) {
-                if axis == 0 && has_direct && view.kind != ViewKind::Direct {
-                    continue;
-                }
-                out[axis].push((f.time_s, val));
-            }
-        }
-    }
-    out
-}
-
-/// Frames of one flight phase of sphere `s` (before or after `split`, more than `guard` away):
-/// only the time span in which the primary view (direct, when configured) saw it, because the
-/// other view may still see the sphere rolling in its tube, where free flight does not hold.
-fn side_frames(obs: &[FrameObs], s: usize, pre: bool, split: f64, guard: f64) -> Vec<usize> {
-    let on_side = |t: f64| {
-        if pre {
-            t < split - guard
-        } else {
-            t > split + guard
-        }
-    };
-    let seen = || {
-        obs.iter()
-            .filter(|f| on_side(f.time_s) && f.spheres[s][0].is_some())
-            .map(|f| f.time_s)
-    };
-    let lo = seen().fold(f64::INFINITY, f64::min);
-    let hi = seen().fold(f64::NEG_INFINITY, f64::max);
-    (0..obs.len())
-        .filter(|&k| on_side(obs[k].time_s) && obs[k].time_s >= lo && obs[k].time_s <= hi)
-        .collect()
-}
-
-/// [a pre, b pre, a post, b post]
-fn phases(obs: &[FrameObs], split: f64, guard: f64) -> [Vec<usize>; 4] {
-    [(0, true), (1, true), (0, false), (1, false)]
-        .map(|(s, pre)| side_frames(obs, s, pre, split, guard))
-}
-
-/// The frames of each phase in which the sphere flies freely: starting from the 15 frames next
-/// to the impact, frames further away are taken one by one while they lie on the ballistic
-/// trajectory fitted so far (within 4σ of its prediction, σ from the residuals and the
-/// extrapolation); three misses in a row end the phase. Before that, a sphere seen still
-/// rolling in its tube (its vertical acceleration there is a fraction of g) bent the fit.
-fn flight_phases(
-    obs: &[FrameObs],
-    views: &[View],
-    split: f64,
-    guard: f64,
-    g: f64,
-) -> [Vec<usize>; 4] {
-    let ph = phases(obs, split, guard);
-    [0, 1, 2, 3].map(|k| free_flight(obs, views, k % 2, &ph[k], k < 2, g))
-}
-
-fn free_flight(
-    obs: &[FrameObs],
-    views: &[View],
-    s: usize,
-    frames: &[usize],
-    pre: bool,
-    g: f64,
-) -> Vec<usize> {
-    const SEED: usize = 15;
-    if frames.len() <= SEED + 2 {
-        return frames.to_vec();
-    }
-    let order: Vec<usize> = if pre {
-        frames.iter().rev().copied().collect()
-    } else {
-        frames.to_vec()
-    };
-    let t_ref = obs[order[0]].time_s;
-    let gravity = [0.0, -g, 0.0];
-    let mut kept: Vec<usize> = order[..SEED].to_vec();
-    let mut fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g);
-    let mut misses = 0;
-    for &k in &order[SEED..] {
-        let one = series(obs, views, s, &[k]);
-        let tau = obs[k].time_s - t_ref;
-        let on_track = (0..3).all(|axis| {
-            let Some(l) = &fit.axes[axis] else {
-                return true;
-            };
-            one[axis].iter().all(|&(_, x)| {
-                let predicted = l.p0 + l.v * tau + 0.5 * gravity[axis] * tau * tau;
-                let extrapolation =
-                    l.cov[(0, 0)] + 2.0 * tau * l.cov[(0, 1)] + tau * tau * l.cov[(1, 1)];
-                let sigma = (l.rms * l.rms + extrapolation.max(0.0)).sqrt().max(0.005);
-                (x - predicted).abs() <= 4.0 * sigma
-            })
-        });
-        if on_track {
-            kept.push(k);
-            misses = 0;
-            fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g);
-        } else {
-            misses += 1;
-            if misses >= 3 {
-                break;
-            }
-        }
-    }
-    kept.sort_unstable();
-    kept
-}
-
-/// The four ballistic fits for a given split.
-fn fit_all(obs: &[FrameObs], views: &[View], t_ref: f64, split: f64, guard: f64, g: f64) -> Fits {
-    let ph = flight_phases(obs, views, split, guard, g);
-    let mut fits = [0, 1, 2, 3].map(|k| SideFit::fit(&series(obs, views, k % 2, &ph[k]), t_ref, g));
-    keep_common_axes(&mut fits);
-    fits
-}
-
-/// Markers lifted again about the sphere's centre on its fitted trajectory instead of the
-/// frame's own circle fit: the trajectory, fitted over every frame of the phase, is several
-/// times more precise than one frame's circle, and an error of the centre moves every marker of
-/// the frame alike, which the rotation between two frames takes for a turn. Frames where the
-/// trajectory and the circle disagree by more than 0.3 px keep their own centre.
-fn relift_on_trajectories(
-    obs: &[FrameObs],
-    views: &[View],
-    fits: &Fits,
-    ph: &[Vec<usize>; 4],
-    split: f64,
-    g: f64,
-    radii: [f64; 2],
-) -> Vec<FrameObs> {
-    let mut out = obs.to_vec();
-    for (k, frames) in ph.iter().enumerate() {
-        let s = k % 2;
-        if fits[k].axes.iter().any(|a| a.is_none()) {
-            continue;
-        }
-        for &i in frames {
-            let Some(f) = out.get_mut(i) else { continue };
-            let (p, _) = kinematics::pos_vel(&fits[k], f.time_s - split, g);
-            for (vi, view) in views.iter().enumerate() {
-                let Some(m) = f.spheres[s][vi].as_mut() else {
-                    continue;
-                };
-                let c = view.project(&p);
-                if (c[0] - m.centre_px[0]).hypot(c[1] - m.centre_px[1]) > 0.3 {
-                    continue;
-                }
-                m.markers = m
-                    .markers
-                    .iter()
-                    .filter_map(|mk| markers::lift(view, mk.centre_px, c, radii[s]))
-                    .collect();
-            }
-        }
-    }
-    out
-}
-
-/// Drops a world axis from all four fits unless every one of them measured it, and says which
-/// axes went. A coordinate that no view saw for one sphere in one phase (in the mirror the two
-/// spheres can hide each other from the impact to the end of the recording) must not enter the
-/// collision as a zero velocity: the collision is then analysed in the axes all four share.
-fn keep_common_axes(fits: &mut Fits) -> Vec<usize> {
-    let mut dropped = Vec::new();
-    for i in 0..3 {
-        let present = fits.iter().filter(|f| f.axes[i].is_some()).count();
-        if present > 0 && present < fits.len() {
-            for f in fits.iter_mut() {
-                f.axes[i] = None;
-            }
-            dropped.push(i);
-        }
-    }
-    dropped
-}
-
-/// Which of [a pre, b pre, a post, b post] measured no position along world axis `i`.
-fn phases_missing_axis(
-    obs: &[FrameObs],
-    views: &[View],
-    split: f64,
-    guard: f64,
-    g: f64,
-    i: usize,
-) -> Vec<&'static str> {
-    let ph = flight_phases(obs, views, split, guard, g);
-    let names = ["a before", "b before", "a after", "b after"];
-    (0..4)
-        .filter(|&k| series(obs, views, k % 2, &ph[k])[i].is_empty())
-        .map(|k| names[k])
-        .collect()
 }
 
 /// Analyses any frame source with the given config.
@@ -464,116 +125,6 @@ pub fn analyze_detailed(
         progress((n + i) / 2, n)
     })?;
     analyze_observations(input(), obs, unmeasured, views, cfg)
-}
-
-/// Markers a fit of the grey levels near the edge must leave out (`circle::profile_fit`): every
-/// marker found in any frame of a sphere's flight, in either view, carried with the fitted
-/// spins to each other frame of that flight, and kept where it lies on the rim band of a view.
-/// A dot within a pixel of the limb darkens the edge too little to be rejected as an outlier,
-/// and moves the centre by a slowly changing few hundredths of a pixel as the sphere turns; the
-/// markers finder does not reach there (53°), but the other view sees the same dot near its own
-/// centre, and other frames saw it before it reached the limb — before the impact for a dot on
-/// the rim after it, since the orientation is continuous through the impact and only ω changes
-/// there. A carried dot's mask grows by the drift its spin's uncertainty allows, and a dot is
-/// not carried further than `MAX_DRIFT_PX` of drift. Without a spin, only the same frame's
-/// other view is used.
-fn rim_dots(details: &Details, cfg: &Config) -> DotMasks {
-    const MAX_DRIFT_PX: f64 = 0.5;
-    let dot_r_mm = cfg.analysis.marker_diameter_mm / 2.0;
-    let t_c = details.impact_time_s;
-    let mut out = DotMasks::new();
-    for s in 0..2 {
-        let spin = |k: usize| details.spins.get(k).and_then(|m| m.fit.as_ref());
-        let (before, after) = (spin(s), spin(s + 2));
-        let carry = |t0: f64, t1: f64| carry_orientation(t0, t1, t_c, before, after);
-        let radius_mm = cfg.spheres.sphere(s).0 / 2.0;
-        let behind_limb = -(dot_r_mm / radius_mm).min(1.0).sin();
-        let frames: Vec<usize> = details.phases[s]
-            .iter()
-            .chain(&details.phases[s + 2])
-            .copied()
-            .collect();
-        for &i in &frames {
-            let fi = &details.obs[i];
-            for (vi, view) in details.views.iter().enumerate() {
-                let Some(m) = &fi.spheres[s][vi] else {
-                    continue;
-                };
-                let dot_px = dot_r_mm * view.px_per_mm;
-                let radius_px = radius_mm * view.px_per_mm;
-                let inner_px = m.diameter_px / 2.0
-                    - circle::PROFILE_BAND_PX
-                    - dot_px
-                    - DotMask::MARGIN_PX
-                    - MAX_DRIFT_PX;
-                let mut masks: Vec<DotMask> = Vec::new();
-                for &j in &frames {
-                    let fj = &details.obs[j];
-                    let Some((turn, sigma_rad)) = carry(fj.time_s, fi.time_s) else {
-                        continue;
-                    };
-                    let drift_px = sigma_rad * radius_px;
-                    if drift_px > MAX_DRIFT_PX {
-                        continue;
-                    }
-                    for d in fj.spheres[s].iter().flatten().flat_map(|mj| &mj.markers) {
-                        let rel = turn * d.rel_mm;
-                        if rel.normalize().dot(&view.facing) < behind_limb {
-                            continue;
-                        }
-                        let off = [
-                            view.px_per_mm * view.u_axis.dot(&rel),
-                            view.px_per_mm * view.v_axis.dot(&rel),
-                        ];
-                        if off[0].hypot(off[1]) < inner_px {
-                            continue;
-                        }
-                        let c = [m.centre_px[0] + off[0], m.centre_px[1] + off[1]];
-                        let seen = masks
-                            .iter()
-                            .any(|q| (q.centre_px[0] - c[0]).hypot(q.centre_px[1] - c[1]) < 0.3);
-                        if !seen {
-                            masks.push(DotMask::around(c, dot_px + drift_px));
-                        }
-                    }
-                }
-                if !masks.is_empty() {
-                    out.entry((fi.index as usize, vi))
-                        .or_default()
-                        .extend(masks);
-                }
-            }
-        }
-    }
-    out
-}
-
-/// The turn of a sphere from time t0 to t1, s, and its angle's σ, rad: with the spin fitted
-/// before the impact (at t_c) on that side of it, after it on the other, and both in turn
-/// across it — the orientation is continuous through the impact; only ω changes there. None
-/// where a spin the carry needs was not measured.
-fn carry_orientation(
-    t0: f64,
-    t1: f64,
-    t_c: f64,
-    before: Option<&SpinFit>,
-    after: Option<&SpinFit>,
-) -> Option<(Rotation3<f64>, f64)> {
-    let within = |a: f64, b: f64| -> Option<(Rotation3<f64>, f64)> {
-        let fit = if a.max(b) <= t_c { before } else { after }?;
-        let dt = b - a;
-        let sigma = fit.cov.trace().max(0.0).sqrt() * dt.abs();
-        Some((Rotation3::from_scaled_axis(fit.omega * dt), sigma))
-    };
-    if t0 == t1 {
-        return Some((Rotation3::identity(), 0.0));
-    }
-    if (t0 - t_c) * (t1 - t_c) >= 0.0 {
-        return within(t0, t1);
-    }
-    let (first, e0) = within(t0, t_c)?;
-    let (second, e1) = within(t_c, t1)?;
-    Some((second * first, e0 + e1))
 }
 
 /// Analyses centres digitised elsewhere (see `tracks` for the CSV columns).
@@ -954,127 +505,6 @@ pub fn analyze_observations(
     ))
 }
 
-/// One-sigma uncertainties of everything derived. Propagating the fit covariances assumes each
-/// frame's error is independent and alike; a frame that pulls a fit (a centre biased by the
-/// neighbouring sphere just before contact, say) breaks that. So the kinematic variance is the
-/// mean of the propagated one and a leave-one-frame-out jackknife of the whole derivation; the
-/// spin part is added from the spin fits' per-frame influences (`spin_variance`).
-#[allow(clippy::too_many_arguments)]
-fn combined_uncertainties(
-    obs: &[FrameObs],
-    views: &[View],
-    ph: &[Vec<usize>; 4],
-    fits: &Fits,
-    spins: Option<[&SpinFit; 4]>,
-    radii: [f64; 2],
-    contact_mm: f64,
-    split: f64,
-    g: f64,
-) -> Result<kinematics::Derived, ImpactError> {
-    let omega = spins.map(|f| f.map(|f| f.omega));
-    // The trajectories' part, with the spins held at their estimates.
-    let spins_held = omega.map(|omega| Spins {
-        omega,
-        cov: [nalgebra::Matrix3::zeros(); 4],
-    });
-    let kin = uncertainties(fits, spins_held.as_ref(), radii, contact_mm, g)?;
-    let omega = omega.as_ref();
-    let mut frames: Vec<usize> = ph.iter().flatten().copied().collect();
-    frames.sort_unstable();
-    frames.dedup();
-    let mut reps: Vec<Vec<f64>> = Vec::new();
-    for &k in &frames {
-        let without: [Vec<usize>; 4] =
-            [0, 1, 2, 3].map(|j| ph[j].iter().copied().filter(|&f| f != k).collect());
-        let fk: Fits =
-            [0, 1, 2, 3].map(|j| SideFit::fit(&series(obs, views, j % 2, &without[j]), split, g));
-        let mut fk = fk;
-        keep_common_axes(&mut fk);
-        if let Ok(d) = derive(&fk, omega, radii, contact_mm, g) {
-            reps.push(d.to_vec());
-        }
-    }
-    let vk = kin.to_vec();
-    let spin_var = match (spins, omega) {
-        (Some(measured), Some(omega)) => {
-            spin_variance(fits, omega, measured, radii, contact_mm, g)?
-        }
-        _ => vec![0.0; vk.len()],
-    };
-    let n = reps.len() as f64;
-    let mut out = vk.clone();
-    for i in 0..vk.len() {
-        let jk = (n >= 3.0 && reps.iter().all(|r| r.len() == vk.len())).then(|| {
-            let mean = reps.iter().map(|r| r[i]).sum::<f64>() / n;
-            ((n - 1.0) / n * reps.iter().map(|r| (r[i] - mean).powi(2)).sum::<f64>()).sqrt()
-        });
-        // Two estimates of one variance, the fits' covariance and the jackknife over frames:
-        // their mean. The larger of the two, as before, is biased high by the choosing, and
-        // once the rim dots were masked it covered e 79–87 % of the time in the bench.
-        let kinematic = match jk {
-            Some(jk) => (vk[i].powi(2) + jk.powi(2)) / 2.0,
-            None => vk[i].powi(2),
-        };
-        out[i] = (kinematic + spin_var[i]).sqrt();
-    }
-    Ok(kinematics::Derived::from_vec(&kin, &out))
-}
-
-/// The variance the spins give each derived quantity, from the spin fits' influences of each
-/// frame taken together: one frame's errors move both spheres' spins of that phase at once,
-/// and β and ψ combine the two. Propagating each spin's covariance on its own would leave
-/// that covariance out (on the bench it changed β's σ by a few per cent either way).
-fn spin_variance(
-    fits: &Fits,
-    omega: &[V3; 4],
-    measured: [&SpinFit; 4],
-    radii: [f64; 2],
-    contact_mm: f64,
-    g: f64,
-) -> Result<Vec<f64>, ImpactError> {
-    let mut frames: Vec<usize> = measured
-        .iter()
-        .flat_map(|m| m.frame_influence.iter().map(|(f, _)| *f))
-        .collect();
-    frames.sort_unstable();
-    frames.dedup();
-    let len = derive(fits, Some(omega), radii, contact_mm, g)?
-        .to_vec()
-        .len();
-    let mut var = vec![0.0; len];
-    for f in frames {
-        let step: [V3; 4] = [0, 1, 2, 3].map(|k| {
-            measured[k]
-                .frame_influence
-                .iter()
-                .find(|(frame, _)| *frame == f)
-                .map_or(V3::zeros(), |(_, d)| *d)
-        });
-        let moved = |sign: f64| {
-            let w = [0, 1, 2, 3].map(|k| omega[k] + sign * step[k]);
-            derive(fits, Some(&w), radii, contact_mm, g)
-                .ok()
-                .map(|d| d.to_vec())
-                .filter(|v| v.len() == len)
-        };
-        // Central differences: the influence terms are small, and β is smooth in the spins.
-        if let (Some(up), Some(down)) = (moved(1.0), moved(-1.0)) {
-            for i in 0..len {
-                var[i] += ((up[i] - down[i]) / 2.0).powi(2);
-            }
-        }
-    }
-    Ok(var)
-}
-
-fn spin_estimate(f: &SpinFit) -> Vector {
-    let s = |i: usize| f.cov[(i, i)].max(0.0).sqrt();
-    Estimate {
-        value: [f.omega.x, f.omega.y, f.omega.z],
-        uncertainty: [s(0), s(1), s(2)],
-    }
-}
-
 /// Which Walton branch the data suggest, from the sign of ψ2 alone: sliding keeps the slip's
 /// direction (ψ2 > 0 unless just above the break point), sticking with β0 > 0 reverses it. Null
 /// when ψ2 is within two standard deviations of zero.
@@ -1088,86 +518,14 @@ fn branch_hint(psi2: f64, sigma: f64) -> Option<String> {
     }
 }
 
-/// Pairs (direct x, mirror x) in mm of every sphere measured in both views of a frame.
-fn x_pairs(obs: &[FrameObs], views: &[View]) -> Option<Vec<(f64, f64)>> {
-    let di = views.iter().position(|v| v.kind == ViewKind::Direct)?;
-    let mi = views.iter().position(|v| v.kind == ViewKind::Mirror)?;
-    let x = |vi: usize, px: [f64; 2]| {
-        views[vi]
-            .unproject(px)
-            .iter()
-            .find(|(a, _)| *a == 0)
-            .map(|(_, x)| *x)
-    };
-    Some(
-        obs.iter()
-            .flat_map(|f| {
-                (0..2).filter_map(move |s| {
-                    Some((f.spheres[s][di].as_ref()?, f.spheres[s][mi].as_ref()?))
-                })
-            })
-            .filter_map(|(d, m)| Some((x(di, d.centre_px)?, x(mi, m.centre_px)?)))
-            .collect(),
-    )
-}
-
-fn residual_stats(pairs: &[(f64, f64)]) -> (f64, f64) {
-    let n = pairs.len().max(1) as f64;
-    let mean = pairs.iter().map(|(d, m)| m - d).sum::<f64>() / n;
-    let rms = (pairs.iter().map(|(d, m)| (m - d).powi(2)).sum::<f64>() / n).sqrt();
-    (mean, rms)
-}
-
-/// Refines the mirror view's scale and u-offset from the x coordinate both views see
-/// (physics.md §5, minimum calibration): x_mirror = a·x_direct + b over the whole recording.
-/// With the config's scale s and offset u0, the true ones are a·s and u0 + sign·b·s. Applied
-/// only when the fit is well conditioned (≥ 10 pairs over ≥ 3 mm of x); always reported.
-fn calibrate_mirror(obs: &[FrameObs], views: &mut [View]) -> Option<Calibration> {
-    let pairs = x_pairs(obs, views)?;
-    if pairs.is_empty() {
-        return None;
-    }
-    let (mean_before, rms_before) = residual_stats(&pairs);
-    let mi = views.iter().position(|v| v.kind == ViewKind::Mirror)?;
-    let config_scale = views[mi].px_per_mm;
-    let config_origin_u = views[mi].origin_px[0];
-    let n = pairs.len() as f64;
-    let (mx, my) = (
-        pairs.iter().map(|p| p.0).sum::<f64>() / n,
-        pairs.iter().map(|p| p.1).sum::<f64>() / n,
-    );
-    let sxx: f64 = pairs.iter().map(|p| (p.0 - mx).powi(2)).sum();
-    let sxy: f64 = pairs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    let lo = pairs.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
-    let hi = pairs.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
-    let refined = pairs.len() >= 10 && hi - lo >= 3.0 && sxx > 0.0;
-    let (mut mean_after, mut rms_after) = (mean_before, rms_before);
-    if refined {
-        let a = sxy / sxx;
-        let b = my - a * mx;
-        let sign = views[mi].u_axis.x.signum();
-        views[mi].px_per_mm = a * config_scale;
-        views[mi].origin_px[0] = config_origin_u + sign * b * config_scale;
-        let after = x_pairs(obs, views)?;
-        (mean_after, rms_after) = residual_stats(&after);
-    }
-    Some(Calibration {
-        frames: pairs.len() as u64,
-        mirror_minus_direct_x_mean_mm: mean_before,
-        mirror_minus_direct_x_rms_mm: rms_before,
-        refined,
-        mirror_px_per_mm_config: config_scale,
-        mirror_px_per_mm_refined: views[mi].px_per_mm,
-        mirror_origin_u_px_config: config_origin_u,
-        mirror_origin_u_px_refined: views[mi].origin_px[0],
-        residual_mean_mm_after: mean_after,
-        residual_rms_mm_after: rms_after,
-    })
-}
-
 #[cfg(test)]
 mod tests {
+    use super::kinematics::{Fits, Series};
+    use super::phases::{free_flight, keep_common_axes};
+    use super::second_pass::carry_orientation;
+    use super::uncertainty::spin_variance;
     use super::*;
+    use nalgebra::Rotation3;
 
     #[test]
     fn an_axis_missing_in_one_phase_is_dropped_from_all_four() {

@@ -1,0 +1,355 @@
+//! Edge-point fits: level crossings along rays, Taubin's algebraic circle, the geometric
+//! (Gauss–Newton) fit with asymmetric outlier rejection, and the fits built on them.
+
+use super::{CircleFit, GreyImage, View};
+use nalgebra::{Matrix3, Vector3};
+
+/// Algebraic circle fit with Taubin's constraint (Chernov's Newton-based implementation).
+pub fn taubin(points: &[[f64; 2]]) -> Option<([f64; 2], f64)> {
+    let n = points.len();
+    if n < 3 {
+        return None;
+    }
+    let nf = n as f64;
+    let mx = points.iter().map(|p| p[0]).sum::<f64>() / nf;
+    let my = points.iter().map(|p| p[1]).sum::<f64>() / nf;
+    let (mut mxx, mut myy, mut mxy, mut mxz, mut myz, mut mzz) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for p in points {
+        let (xi, yi) = (p[0] - mx, p[1] - my);
+        let zi = xi * xi + yi * yi;
+        mxy += xi * yi;
+        mxx += xi * xi;
+        myy += yi * yi;
+        mxz += xi * zi;
+        myz += yi * zi;
+        mzz += zi * zi;
+    }
+    let (mxx, myy, mxy, mxz, myz, mzz) =
+        (mxx / nf, myy / nf, mxy / nf, mxz / nf, myz / nf, mzz / nf);
+    let mz = mxx + myy;
+    let cov_xy = mxx * myy - mxy * mxy;
+    let var_z = mzz - mz * mz;
+    let a3 = 4.0 * mz;
+    let a2 = -3.0 * mz * mz - mzz;
+    let a1 = var_z * mz + 4.0 * cov_xy * mz - mxz * mxz - myz * myz;
+    let a0 = mxz * (mxz * myy - myz * mxy) + myz * (myz * mxx - mxz * mxy) - var_z * cov_xy;
+    let (a22, a33) = (a2 + a2, a3 + a3 + a3);
+    let (mut x, mut y) = (0.0f64, a0);
+    for _ in 0..99 {
+        let dy = a1 + x * (a22 + a33 * x);
+        let xnew = x - y / dy;
+        if xnew == x || !xnew.is_finite() {
+            break;
+        }
+        let ynew = a0 + xnew * (a1 + xnew * (a2 + xnew * a3));
+        if ynew.abs() >= y.abs() {
+            break;
+        }
+        x = xnew;
+        y = ynew;
+    }
+    let det = x * x - x * mz + cov_xy;
+    if det.abs() < 1e-300 {
+        return None;
+    }
+    let xc = (mxz * (myy - x) - myz * mxy) / det / 2.0;
+    let yc = (myz * (mxx - x) - mxz * mxy) / det / 2.0;
+    let r = (xc * xc + yc * yc + mz).sqrt();
+    (r.is_finite()).then_some(([xc + mx, yc + my], r))
+}
+
+/// Geometric least squares: minimise Σ(|p − c| − R)². Returns centre, radius, residuals and
+/// (JᵀJ)⁻¹.
+fn geometric(
+    points: &[[f64; 2]],
+    start: ([f64; 2], f64),
+) -> Option<([f64; 2], f64, Vec<f64>, Matrix3<f64>)> {
+    let (mut c, mut r) = start;
+    for _ in 0..30 {
+        let mut jtj = Matrix3::<f64>::zeros();
+        let mut jtr = Vector3::<f64>::zeros();
+        for p in points {
+            let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+            let d = (dx * dx + dy * dy).sqrt().max(1e-12);
+            let j = Vector3::new(-dx / d, -dy / d, -1.0);
+            jtj += j * j.transpose();
+            jtr += j * (d - r);
+        }
+        let step = jtj.lu().solve(&(-jtr))?;
+        c[0] += step[0];
+        c[1] += step[1];
+        r += step[2];
+        if step.norm() < 1e-9 {
+            break;
+        }
+    }
+    let mut jtj = Matrix3::<f64>::zeros();
+    let mut res = Vec::with_capacity(points.len());
+    for p in points {
+        let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+        let d = (dx * dx + dy * dy).sqrt().max(1e-12);
+        let j = Vector3::new(-dx / d, -dy / d, -1.0);
+        jtj += j * j.transpose();
+        res.push(d - r);
+    }
+    let inv = jtj.try_inverse()?;
+    (c[0].is_finite() && c[1].is_finite() && r > 0.0).then_some((c, r, res, inv))
+}
+
+/// Robust circle fit: Taubin start, geometric refinement, rejection of points further than
+/// max(3σ, 0.3 px) from the circle, repeated until stable.
+pub fn robust_fit(points: &[[f64; 2]], oversampling: f64) -> Option<CircleFit> {
+    let mut keep: Vec<[f64; 2]> = points.to_vec();
+    let mut start = taubin(&keep)?;
+    for _ in 0..4 {
+        let (c, r, res, _) = geometric(&keep, start)?;
+        let mut abs: Vec<f64> = res.iter().map(|x| x.abs()).collect();
+        abs.sort_by(f64::total_cmp);
+        let sigma = 1.4826 * abs[abs.len() / 2];
+        // Asymmetric: a marker near the limb darkens the rim and moves edge points inwards
+        // only, by a few tenths of a pixel; noise moves them both ways. Cutting the inner tail
+        // harder removes the markers' bias of the centre, and for noise costs only a slightly
+        // larger radius (the centre of a symmetric cut stays put).
+        let (limit_in, limit_out) = ((1.5 * sigma).max(0.05), (3.0 * sigma).max(0.1));
+        let before = keep.len();
+        keep = keep
+            .iter()
+            .zip(res.iter())
+            .filter(|(_, e)| **e >= -limit_in && **e <= limit_out)
+            .map(|(p, _)| *p)
+            .collect();
+        start = (c, r);
+        if keep.len() == before || keep.len() < 8 {
+            break;
+        }
+    }
+    if keep.len() < 8 {
+        return None;
+    }
+    let (c, r, res, inv) = geometric(&keep, start)?;
+    let n = keep.len() as f64;
+    let s2 = res.iter().map(|e| e * e).sum::<f64>() / (n - 3.0).max(1.0);
+    // Neighbouring rays share pixels; their errors are not independent when rays are closer than
+    // a pixel along the edge.
+    let cov_scale = s2 * oversampling.max(1.0);
+    Some(CircleFit {
+        centre: c,
+        radius: r,
+        centre_sigma: [
+            (cov_scale * inv[(0, 0)]).sqrt(),
+            (cov_scale * inv[(1, 1)]).sqrt(),
+        ],
+        radius_sigma: (cov_scale * inv[(2, 2)]).sqrt(),
+        rms_px: s2.sqrt(),
+        points_used: keep.len(),
+        points_total: points.len(),
+        arc_sectors: sectors_covered(&keep, c),
+    })
+}
+
+/// Edge points of the disc around `centre`: along each ray, the first fall through `level`
+/// outward from inside the disc, interpolated linearly between samples.
+///
+/// A ray that crosses a marker is not used: its profile dips and rises again inside the disc
+/// (by more than `dip`), or rises back above `level` just after the "edge". Dark markers near
+/// the limb, passing through the rim as the sphere spins, would otherwise move the edge inwards
+/// on a few rays and bias the centre by a slowly varying few hundredths of a pixel — errors that
+/// do not average out along a trajectory.
+pub fn edge_points(
+    img: &GreyImage,
+    view: &View,
+    centre: [f64; 2],
+    radius_px: f64,
+    level: f64,
+    dip: f64,
+    rays: usize,
+) -> Vec<[f64; 2]> {
+    let mut pts = Vec::with_capacity(rays);
+    let step = 0.2;
+    let r_start = (radius_px - 3.0).max(radius_px * 0.4);
+    let r_end = radius_px + 3.0;
+    for k in 0..rays {
+        let a = std::f64::consts::TAU * k as f64 / rays as f64;
+        let (dx, dy) = (a.cos(), a.sin());
+        let mut prev: Option<(f64, f64)> = None;
+        let mut was_inside = false;
+        let mut lowest_inside = f64::INFINITY;
+        let mut r = r_start;
+        while r <= r_end {
+            let (u, v) = (centre[0] + r * dx, centre[1] + r * dy);
+            if !view.contains(u, v) {
+                break;
+            }
+            let Some(val) = img.sample(u, v) else { break };
+            if val >= level {
+                if val > lowest_inside + dip {
+                    break;
+                }
+                lowest_inside = lowest_inside.min(val);
+                was_inside = true;
+            } else if was_inside {
+                if let Some((pr, pv)) = prev {
+                    let f = (pv - level) / (pv - val);
+                    let re = pr + f * (r - pr);
+                    let rises_again = (1..=8).any(|j| {
+                        let rr = r + j as f64 * step;
+                        img.sample(centre[0] + rr * dx, centre[1] + rr * dy)
+                            .is_some_and(|w| w >= level)
+                    });
+                    if !rises_again {
+                        pts.push([centre[0] + re * dx, centre[1] + re * dy]);
+                    }
+                }
+                break;
+            }
+            prev = Some((r, val));
+            r += step;
+        }
+    }
+    pts
+}
+
+/// How much of a circle its edge points go round: the number of 10° sectors (of 36) that hold
+/// at least one. A partial arc fixes the centre well only across its chord.
+pub fn sectors_covered(points: &[[f64; 2]], centre: [f64; 2]) -> usize {
+    let mut sectors = [false; 36];
+    for x in points {
+        let a = (x[1] - centre[1]).atan2(x[0] - centre[0]);
+        let k = ((a + std::f64::consts::PI) / std::f64::consts::TAU * 36.0) as usize;
+        sectors[k.min(35)] = true;
+    }
+    sectors.iter().filter(|s| **s).count()
+}
+
+/// Edge points closer than this to the other sphere's disc are not used: in the narrow gap
+/// between two spheres the background never reaches its level (both rims' blur and the motion
+/// smear add up), so the edge there moves outwards and pulls the centre towards the other
+/// sphere — a bias that grows as they approach and tilts the last frames before the impact.
+pub const NEIGHBOUR_MARGIN_PX: f64 = 3.0;
+
+/// A circle through edge points on rays from a rough centre, where the grey level crosses
+/// halfway between `background` and the shaded rim just inside the edge.
+pub fn fit_edges(
+    img: &GreyImage,
+    view: &View,
+    rough: [f64; 2],
+    radius_px: f64,
+    background: f64,
+    other: Option<([f64; 2], f64)>,
+) -> Option<CircleFit> {
+    let rays = ((std::f64::consts::TAU * radius_px * 1.5).round() as usize).clamp(24, 720);
+    let oversampling = rays as f64 / (std::f64::consts::TAU * radius_px);
+    // The level is halfway to the shaded rim just inside the edge, measured on this sphere.
+    let mut rim: Vec<f64> = (0..rays)
+        .filter_map(|k| {
+            let a = std::f64::consts::TAU * k as f64 / rays as f64;
+            let (u, v) = (
+                rough[0] + (radius_px - 1.5) * a.cos(),
+                rough[1] + (radius_px - 1.5) * a.sin(),
+            );
+            // Beyond the view's border the frame shows another view.
+            view.contains(u, v).then(|| img.sample(u, v)).flatten()
+        })
+        .collect();
+    if rim.len() < rays / 4 {
+        return None;
+    }
+    rim.sort_by(f64::total_cmp);
+    // Upper-middle of the rim: markers pull the lower part down.
+    let interior = rim[rim.len() * 3 / 4];
+    if interior <= background {
+        return None;
+    }
+    let level = background + 0.5 * (interior - background);
+    let mut centre = rough;
+    let mut fit = None;
+    for _ in 0..2 {
+        let dip = 0.1 * (interior - background);
+        let mut pts = edge_points(img, view, centre, radius_px, level, dip, rays);
+        if let Some((oc, or)) = other {
+            pts.retain(|p| (p[0] - oc[0]).hypot(p[1] - oc[1]) > or + NEIGHBOUR_MARGIN_PX);
+        }
+        if pts.len() < rays / 3 {
+            return fit;
+        }
+        let f = robust_fit(&pts, oversampling)?;
+        centre = f.centre;
+        fit = Some(f);
+    }
+    fit
+}
+
+/// Centre of a circle of known radius through `points` (Gauss–Newton from `start`), dropping
+/// points further than max(3σ, 0.1 px) from it and refitting.
+pub fn fit_fixed_radius(
+    points: &[[f64; 2]],
+    start: [f64; 2],
+    radius: f64,
+    oversampling: f64,
+) -> Option<CircleFit> {
+    let mut keep: Vec<[f64; 2]> = points.to_vec();
+    let mut c = start;
+    let mut result = None;
+    for _ in 0..3 {
+        if keep.len() < 8 {
+            return result;
+        }
+        for _ in 0..20 {
+            let mut jtj = nalgebra::Matrix2::<f64>::zeros();
+            let mut jtr = nalgebra::Vector2::<f64>::zeros();
+            for p in &keep {
+                let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+                let d = dx.hypot(dy).max(1e-12);
+                let j = nalgebra::Vector2::new(-dx / d, -dy / d);
+                jtj += j * j.transpose();
+                jtr += j * (d - radius);
+            }
+            let step = jtj.lu().solve(&(-jtr))?;
+            c[0] += step[0];
+            c[1] += step[1];
+            if step.norm() < 1e-9 {
+                break;
+            }
+        }
+        let mut jtj = nalgebra::Matrix2::<f64>::zeros();
+        let res: Vec<f64> = keep
+            .iter()
+            .map(|p| {
+                let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+                let d = dx.hypot(dy).max(1e-12);
+                let j = nalgebra::Vector2::new(-dx / d, -dy / d);
+                jtj += j * j.transpose();
+                d - radius
+            })
+            .collect();
+        let n = keep.len() as f64;
+        let s2 = res.iter().map(|e| e * e).sum::<f64>() / (n - 2.0).max(1.0);
+        let inv = jtj.try_inverse()?;
+        let cov_scale = s2 * oversampling.max(1.0);
+        result = Some(CircleFit {
+            centre: c,
+            radius,
+            centre_sigma: [
+                (cov_scale * inv[(0, 0)]).sqrt(),
+                (cov_scale * inv[(1, 1)]).sqrt(),
+            ],
+            radius_sigma: 0.0,
+            rms_px: s2.sqrt(),
+            points_used: keep.len(),
+            points_total: points.len(),
+            arc_sectors: sectors_covered(&keep, c),
+        });
+        let limit = (3.0 * s2.sqrt()).max(0.1);
+        let before = keep.len();
+        keep = keep
+            .iter()
+            .zip(&res)
+            .filter(|(_, r)| r.abs() <= limit)
+            .map(|(p, _)| *p)
+            .collect();
+        if keep.len() == before {
+            break;
+        }
+    }
+    result
+}

@@ -1,0 +1,223 @@
+//! Flight phases: which frames are free flight on each side of the impact (grown outwards
+//! from it while they stay on the ballistic track), the per-axis series built from the views,
+//! the ballistic fits of the four phases, and the axes every phase measured.
+
+use super::geometry::{View, ViewKind};
+use super::kinematics::{self, Fits, Series, SideFit};
+use super::markers;
+use super::tracking::FrameObs;
+
+/// Per-sphere coordinate series (x, y, z) in world mm over the given frames, built from the
+/// views: y from the direct view, z from the mirror, x from the direct view when there is one
+/// (the mirror's x is the calibration check).
+pub(super) fn series(obs: &[FrameObs], views: &[View], s: usize, frames: &[usize]) -> [Series; 3] {
+    let mut out: [Series; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    let has_direct = views.iter().any(|v| v.kind == ViewKind::Direct);
+    for f in frames.iter().map(|&k| &obs[k]) {
+        for (vi, view) in views.iter().enumerate() {
+            let Some(m) = &f.spheres[s][vi] else { continue };
+            for (axis, val) in view.unproject(m.centre_px) {
+                if axis == 0 && has_direct && view.kind != ViewKind::Direct {
+                    continue;
+                }
+                out[axis].push((f.time_s, val));
+            }
+        }
+    }
+    out
+}
+
+/// Frames of one flight phase of sphere `s` (before or after `split`, more than `guard` away):
+/// only the time span in which the primary view (direct, when configured) saw it, because the
+/// other view may still see the sphere rolling in its tube, where free flight does not hold.
+pub(super) fn side_frames(
+    obs: &[FrameObs],
+    s: usize,
+    pre: bool,
+    split: f64,
+    guard: f64,
+) -> Vec<usize> {
+    let on_side = |t: f64| {
+        if pre {
+            t < split - guard
+        } else {
+            t > split + guard
+        }
+    };
+    let seen = || {
+        obs.iter()
+            .filter(|f| on_side(f.time_s) && f.spheres[s][0].is_some())
+            .map(|f| f.time_s)
+    };
+    let lo = seen().fold(f64::INFINITY, f64::min);
+    let hi = seen().fold(f64::NEG_INFINITY, f64::max);
+    (0..obs.len())
+        .filter(|&k| on_side(obs[k].time_s) && obs[k].time_s >= lo && obs[k].time_s <= hi)
+        .collect()
+}
+
+/// [a pre, b pre, a post, b post]
+pub(super) fn phases(obs: &[FrameObs], split: f64, guard: f64) -> [Vec<usize>; 4] {
+    [(0, true), (1, true), (0, false), (1, false)]
+        .map(|(s, pre)| side_frames(obs, s, pre, split, guard))
+}
+
+/// The frames of each phase in which the sphere flies freely: starting from the 15 frames next
+/// to the impact, frames further away are taken one by one while they lie on the ballistic
+/// trajectory fitted so far (within 4σ of its prediction, σ from the residuals and the
+/// extrapolation); three misses in a row end the phase. Before that, a sphere seen still
+/// rolling in its tube (its vertical acceleration there is a fraction of g) bent the fit.
+pub(super) fn flight_phases(
+    obs: &[FrameObs],
+    views: &[View],
+    split: f64,
+    guard: f64,
+    g: f64,
+) -> [Vec<usize>; 4] {
+    let ph = phases(obs, split, guard);
+    [0, 1, 2, 3].map(|k| free_flight(obs, views, k % 2, &ph[k], k < 2, g))
+}
+
+pub(super) fn free_flight(
+    obs: &[FrameObs],
+    views: &[View],
+    s: usize,
+    frames: &[usize],
+    pre: bool,
+    g: f64,
+) -> Vec<usize> {
+    const SEED: usize = 15;
+    if frames.len() <= SEED + 2 {
+        return frames.to_vec();
+    }
+    let order: Vec<usize> = if pre {
+        frames.iter().rev().copied().collect()
+    } else {
+        frames.to_vec()
+    };
+    let t_ref = obs[order[0]].time_s;
+    let gravity = [0.0, -g, 0.0];
+    let mut kept: Vec<usize> = order[..SEED].to_vec();
+    let mut fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g);
+    let mut misses = 0;
+    for &k in &order[SEED..] {
+        let one = series(obs, views, s, &[k]);
+        let tau = obs[k].time_s - t_ref;
+        let on_track = (0..3).all(|axis| {
+            let Some(l) = &fit.axes[axis] else {
+                return true;
+            };
+            one[axis].iter().all(|&(_, x)| {
+                let predicted = l.p0 + l.v * tau + 0.5 * gravity[axis] * tau * tau;
+                let extrapolation =
+                    l.cov[(0, 0)] + 2.0 * tau * l.cov[(0, 1)] + tau * tau * l.cov[(1, 1)];
+                let sigma = (l.rms * l.rms + extrapolation.max(0.0)).sqrt().max(0.005);
+                (x - predicted).abs() <= 4.0 * sigma
+            })
+        });
+        if on_track {
+            kept.push(k);
+            misses = 0;
+            fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g);
+        } else {
+            misses += 1;
+            if misses >= 3 {
+                break;
+            }
+        }
+    }
+    kept.sort_unstable();
+    kept
+}
+
+/// The four ballistic fits for a given split.
+pub(super) fn fit_all(
+    obs: &[FrameObs],
+    views: &[View],
+    t_ref: f64,
+    split: f64,
+    guard: f64,
+    g: f64,
+) -> Fits {
+    let ph = flight_phases(obs, views, split, guard, g);
+    let mut fits = [0, 1, 2, 3].map(|k| SideFit::fit(&series(obs, views, k % 2, &ph[k]), t_ref, g));
+    keep_common_axes(&mut fits);
+    fits
+}
+
+/// Markers lifted again about the sphere's centre on its fitted trajectory instead of the
+/// frame's own circle fit: the trajectory, fitted over every frame of the phase, is several
+/// times more precise than one frame's circle, and an error of the centre moves every marker of
+/// the frame alike, which the rotation between two frames takes for a turn. Frames where the
+/// trajectory and the circle disagree by more than 0.3 px keep their own centre.
+pub(super) fn relift_on_trajectories(
+    obs: &[FrameObs],
+    views: &[View],
+    fits: &Fits,
+    ph: &[Vec<usize>; 4],
+    split: f64,
+    g: f64,
+    radii: [f64; 2],
+) -> Vec<FrameObs> {
+    let mut out = obs.to_vec();
+    for (k, frames) in ph.iter().enumerate() {
+        let s = k % 2;
+        if fits[k].axes.iter().any(|a| a.is_none()) {
+            continue;
+        }
+        for &i in frames {
+            let Some(f) = out.get_mut(i) else { continue };
+            let (p, _) = kinematics::pos_vel(&fits[k], f.time_s - split, g);
+            for (vi, view) in views.iter().enumerate() {
+                let Some(m) = f.spheres[s][vi].as_mut() else {
+                    continue;
+                };
+                let c = view.project(&p);
+                if (c[0] - m.centre_px[0]).hypot(c[1] - m.centre_px[1]) > 0.3 {
+                    continue;
+                }
+                m.markers = m
+                    .markers
+                    .iter()
+                    .filter_map(|mk| markers::lift(view, mk.centre_px, c, radii[s]))
+                    .collect();
+            }
+        }
+    }
+    out
+}
+
+/// Drops a world axis from all four fits unless every one of them measured it, and says which
+/// axes went. A coordinate that no view saw for one sphere in one phase (in the mirror the two
+/// spheres can hide each other from the impact to the end of the recording) must not enter the
+/// collision as a zero velocity: the collision is then analysed in the axes all four share.
+pub(super) fn keep_common_axes(fits: &mut Fits) -> Vec<usize> {
+    let mut dropped = Vec::new();
+    for i in 0..3 {
+        let present = fits.iter().filter(|f| f.axes[i].is_some()).count();
+        if present > 0 && present < fits.len() {
+            for f in fits.iter_mut() {
+                f.axes[i] = None;
+            }
+            dropped.push(i);
+        }
+    }
+    dropped
+}
+
+/// Which of [a pre, b pre, a post, b post] measured no position along world axis `i`.
+pub(super) fn phases_missing_axis(
+    obs: &[FrameObs],
+    views: &[View],
+    split: f64,
+    guard: f64,
+    g: f64,
+    i: usize,
+) -> Vec<&'static str> {
+    let ph = flight_phases(obs, views, split, guard, g);
+    let names = ["a before", "b before", "a after", "b after"];
+    (0..4)
+        .filter(|&k| series(obs, views, k % 2, &ph[k])[i].is_empty())
+        .map(|k| names[k])
+        .collect()
+}
