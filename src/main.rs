@@ -35,6 +35,7 @@ enum LogFormat {
 enum Command {
     /// One experiment: arm the camera, fire the relay, record, analyse, print the result.
     Run {
+        /// Config file (TOML); without it, the embedded default (the simulated lab).
         #[arg(long)]
         config: Option<PathBuf>,
         /// Print the report as JSON on stdout instead of the summary.
@@ -43,18 +44,22 @@ enum Command {
     },
     /// Arm, fire and record only (no analysis).
     Capture {
+        /// Config file (TOML); without it, the embedded default (the simulated lab).
         #[arg(long)]
         config: Option<PathBuf>,
     },
     /// Re-analyse a recorded session with its own config; the report must equal the recorded one.
     Replay {
+        /// The session directory to analyse again.
         session: PathBuf,
+        /// Print the report as JSON on stdout instead of the summary.
         #[arg(long)]
         json: bool,
     },
     /// Analyse a session, a multi-page greyscale TIFF recorded elsewhere, or (--tracks) centres
     /// digitised in other software.
     Analyze {
+        /// A session directory or a multi-page greyscale TIFF stack.
         #[arg(required_unless_present = "tracks", conflicts_with = "tracks")]
         path: Option<PathBuf>,
         /// CSV of digitised centres: frame,sphere,view,u,v[,time_s].
@@ -77,6 +82,7 @@ enum Command {
     },
     /// The lab daemon: HTTP API and web page to run and watch experiments.
     Serve {
+        /// Config file (TOML); without it, the embedded default (the simulated lab).
         #[arg(long)]
         config: Option<PathBuf>,
         /// Address to listen on; off loopback a token (daemon.token or IMPACTCAM_TOKEN) is required.
@@ -85,6 +91,7 @@ enum Command {
     },
     /// A series of experiments over tube angles (resumable), then the campaign fit.
     Sweep {
+        /// Config file (TOML); without it, the embedded default (the simulated lab).
         #[arg(long)]
         config: Option<PathBuf>,
         /// Tube angles, a:b:step in degrees (inclusive), e.g. 10:65:5.
@@ -94,6 +101,7 @@ enum Command {
         /// relative velocity, so obliquity is set by the offset, not the tube angle).
         #[arg(long)]
         impact_offsets: Option<String>,
+        /// Experiments at each point of the sweep.
         #[arg(long, default_value_t = 1)]
         repeats: u32,
         /// Campaign directory; an existing one is resumed.
@@ -105,6 +113,7 @@ enum Command {
         /// report.json files, session directories or campaign directories.
         #[arg(required = true)]
         paths: Vec<PathBuf>,
+        /// Print the fit as JSON on stdout instead of the table.
         #[arg(long)]
         json: bool,
         /// Also write fit.json, collisions.csv, psi.svg and report.html here.
@@ -113,7 +122,9 @@ enum Command {
     },
     /// Export a session's frames as a multi-page TIFF (Fiji/ImageJ opens it).
     Export {
+        /// The session directory whose frames are exported.
         session: PathBuf,
+        /// The multi-page TIFF to write (replaced whole, never left half-written).
         #[arg(long)]
         tiff: PathBuf,
     },
@@ -134,7 +145,10 @@ enum Command {
 #[derive(Subcommand)]
 enum ConfigAction {
     /// Validate a config file without touching hardware.
-    Check { file: PathBuf },
+    Check {
+        /// The config file (TOML) to check.
+        file: PathBuf,
+    },
     /// Print the embedded default config.
     Default,
 }
@@ -152,6 +166,7 @@ enum BenchWhat {
     },
     /// N experiments back to back through the daemon; memory and file descriptors compared.
     Soak {
+        /// Experiments to run back to back.
         #[arg(long, default_value_t = 100)]
         experiments: usize,
         /// Where the daemon writes its sessions (a temporary directory inside it).
@@ -160,8 +175,10 @@ enum BenchWhat {
     },
     /// Relay pulse latency and jitter over a serial line, against emulated modules.
     Relay {
+        /// Pulses per emulated module.
         #[arg(long, default_value_t = 50)]
         pulses: usize,
+        /// Length of each pulse, ms.
         #[arg(long, default_value_t = 20.0)]
         pulse_ms: f64,
     },
