@@ -44,11 +44,14 @@ pub enum Event {
 
 /// The devices of an experiment: opened once, and kept by a daemon from one experiment to the
 /// next (`record` borrows them).
+///
+/// Fields drop in this order: the trigger first (its guard opens the relay while the port,
+/// the simulator's pseudo-terminal included, is still there), then the camera, then the lab.
 pub struct Rig {
-    pub lab: Option<Arc<hw_sim::SimLab>>,
+    pub trigger: Trigger,
     /// None once an acquisition thread died with it: the rig must be reopened.
     pub camera: Option<Box<dyn Camera>>,
-    pub trigger: Trigger,
+    pub lab: Option<Arc<hw_sim::SimLab>>,
 }
 
 impl Rig {

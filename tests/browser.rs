@@ -3,6 +3,8 @@
 //! Ignored by a plain `cargo test` (it needs a browser); `scripts/test` installs Debian's chromium
 //! and runs it. Asked to run without a browser, it fails and says how to get one.
 
+mod common;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::process::{Command, Stdio};
@@ -53,24 +55,9 @@ impl Drop for Kill {
 fn clicking_run_in_a_browser_shows_the_result() {
     let chromium = browser();
     let dir = tempfile::tempdir().unwrap();
-    let mut daemon = Command::new(env!("CARGO_BIN_EXE_impactcam"))
-        .args(["serve", "--listen", "127.0.0.1:0"])
-        .current_dir(dir.path())
-        .env_remove("IMPACTCAM_TOKEN")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(daemon.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+    let (daemon, addr) = common::spawn_daemon(dir.path(), &[], None, Stdio::null());
     let _daemon = Kill(daemon);
-    let url = line
-        .trim()
-        .strip_prefix("listening on ")
-        .unwrap()
-        .to_string();
+    let url = format!("http://{addr}");
 
     let profile = tempfile::tempdir().unwrap();
     let mut chrome = Command::new(chromium)

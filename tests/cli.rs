@@ -1,21 +1,11 @@
 //! The command line as a user meets it: the README's first command on a fresh directory,
 //! replay, analyze of exported TIFF stacks, config commands, and bad input.
 
+mod common;
+
+use common::{impactcam, stderr};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn impactcam(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_impactcam"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("impactcam binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 fn only_session(dir: &Path) -> PathBuf {
     let mut sessions: Vec<PathBuf> = std::fs::read_dir(dir.join("sessions"))

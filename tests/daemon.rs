@@ -3,7 +3,7 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -24,27 +24,9 @@ impl Daemon {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(dir.path().join("c.toml"), config).unwrap();
         let log = std::fs::File::create(dir.path().join("daemon.log")).unwrap();
-        let mut cmd = Command::new(env!("CARGO_BIN_EXE_impactcam"));
-        cmd.args(["serve", "--config", "c.toml", "--listen", "127.0.0.1:0"])
-            .args(args)
-            .current_dir(dir.path())
-            .env_remove("IMPACTCAM_LOG_FORMAT")
-            .stdout(Stdio::piped())
-            .stderr(log);
-        match env_token {
-            Some(t) => cmd.env("IMPACTCAM_TOKEN", t),
-            None => cmd.env_remove("IMPACTCAM_TOKEN"),
-        };
-        let mut child = cmd.spawn().unwrap();
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        let addr = line
-            .trim()
-            .strip_prefix("listening on http://")
-            .expect("daemon prints its address")
-            .to_string();
+        let mut all = vec!["--config", "c.toml"];
+        all.extend_from_slice(args);
+        let (child, addr) = common::spawn_daemon(dir.path(), &all, env_token, Stdio::from(log));
         Daemon {
             child,
             addr,

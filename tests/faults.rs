@@ -3,8 +3,10 @@
 //! row: whether the relay ever closed, whether it is open now, the session's status, whether
 //! its frames read back, leftover temporary files, and the exit code. The matrix is printed.
 
-use impactcam::trigger::emulator::{Emulator, Kind};
-use std::io::{BufRead, BufReader, Read, Write};
+mod common;
+
+use hw_sim::modules::{Emulator, Kind};
+use std::io::{Read, Write};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -303,22 +305,8 @@ fn daemon_oversize_request() -> Row {
     let emu = Emulator::start(Kind::Lcus).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     std::fs::write(tmp.path().join("c.toml"), config(emu.path(), "", "")).unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_impactcam"))
-        .args(["serve", "--config", "c.toml", "--listen", "127.0.0.1:0"])
-        .current_dir(tmp.path())
-        .env_remove("IMPACTCAM_TOKEN")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let addr = line
-        .trim()
-        .trim_start_matches("listening on http://")
-        .to_string();
+    let (mut child, addr) =
+        common::spawn_daemon(tmp.path(), &["--config", "c.toml"], None, Stdio::null());
     let body = r#"{"frames": 4294967295}"#;
     let mut s = std::net::TcpStream::connect(&addr).unwrap();
     write!(s, "POST /api/experiments HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}", body.len()).unwrap();

@@ -5,7 +5,6 @@ mod common;
 
 use impactcam::bench::accuracy::{self, rms, stats};
 use std::path::Path;
-use std::process::Command;
 
 #[test]
 fn quick_sweep_meets_the_accuracy_goals_and_beats_the_thesis() {
@@ -91,11 +90,7 @@ fn run(dir: &Path, toml: &str, extra: &[&str]) -> std::process::Output {
     std::fs::write(dir.join("c.toml"), toml).unwrap();
     let mut args = vec!["run", "--config", "c.toml", "--json"];
     args.extend_from_slice(extra);
-    Command::new(env!("CARGO_BIN_EXE_impactcam"))
-        .args(&args)
-        .current_dir(dir)
-        .output()
-        .unwrap()
+    common::impactcam(dir, &args)
 }
 
 #[test]

@@ -2,17 +2,11 @@
 //! one line on stderr that names the file, key or line — never a panic, an abort, or a wrong
 //! number with exit 0 — and must leave what was recorded as it was.
 
+mod common;
+
+use common::impactcam;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn impactcam(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_impactcam"))
-        .args(args)
-        .current_dir(dir)
-        .env_remove("IMPACTCAM_LOG_FORMAT")
-        .output()
-        .expect("impactcam binary runs")
-}
 
 /// Asserts exit 1 and exactly one stderr line that contains every one of `named`.
 fn refused(what: &str, out: &Output, named: &[&str]) {

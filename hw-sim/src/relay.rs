@@ -5,7 +5,7 @@
 
 use crate::clock::LabClock;
 use serde::Serialize;
-use serialport::{SerialPort, TTYPort};
+use serialport::TTYPort;
 use std::io::Read;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -36,13 +36,7 @@ pub struct SimRelay {
 
 impl SimRelay {
     pub fn spawn(clock: Arc<LabClock>, log: Arc<Mutex<RelayLog>>) -> std::io::Result<SimRelay> {
-        let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::other)?;
-        master
-            .set_timeout(Duration::from_millis(20))
-            .map_err(std::io::Error::other)?;
-        let port_path = slave
-            .name()
-            .ok_or_else(|| std::io::Error::other("pseudo-terminal has no name"))?;
+        let (mut master, slave, port_path) = crate::pty::pair(Duration::from_millis(20))?;
         let stop = Arc::new(AtomicBool::new(false));
         let stop2 = stop.clone();
         let thread = std::thread::Builder::new()
@@ -76,30 +70,16 @@ impl SimRelay {
     }
 }
 
+/// The lab's relay is channel 1; a frame for another channel is as bad as garbage.
 fn decode(pending: &mut Vec<u8>, clock: &LabClock, log: &Mutex<RelayLog>) {
-    while pending.len() >= 4 {
-        if pending[0] != 0xA0 {
-            pending.remove(0);
-            if let Ok(mut l) = log.lock() {
-                l.bad_frames += 1;
-            }
-            continue;
-        }
-        let f = [pending[0], pending[1], pending[2], pending[3]];
-        let sum = f[0].wrapping_add(f[1]).wrapping_add(f[2]);
-        if f[1] == 1 && f[2] <= 1 && f[3] == sum {
-            if let Ok(mut l) = log.lock() {
-                l.events.push(RelayEvent {
-                    time_s: clock.now_s(),
-                    closed: f[2] == 1,
-                });
-            }
-            pending.drain(..4);
-        } else {
-            pending.remove(0);
-            if let Ok(mut l) = log.lock() {
-                l.bad_frames += 1;
-            }
+    for heard in crate::lcus::decode(pending) {
+        let Ok(mut l) = log.lock() else { continue };
+        match heard {
+            crate::lcus::Heard::Switch { channel: 1, closed } => l.events.push(RelayEvent {
+                time_s: clock.now_s(),
+                closed,
+            }),
+            _ => l.bad_frames += 1,
         }
     }
 }

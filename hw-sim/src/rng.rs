@@ -1,6 +1,7 @@
 //! A small deterministic random source (SplitMix64): the simulator must give the same lab from
-//! the same seed on every machine, so it does not use a platform or crate RNG whose stream may
-//! change between versions.
+//! the same seed on every machine, and the campaign fit the same bootstrap intervals on every
+//! run, so neither uses a platform or crate RNG whose stream may change between versions. The
+//! project's one PRNG.
 
 use crate::V3;
 
@@ -10,6 +11,12 @@ pub struct Rng(u64);
 impl Rng {
     pub fn new(seed: u64) -> Self {
         Rng(seed ^ 0x5DEE_CE66_D1CE_4E5B)
+    }
+
+    /// A generator whose state is `state` as given (no seed scrambling): for streams that
+    /// were fixed before `new` was shared, such as the campaign fit's bootstrap.
+    pub fn from_state(state: u64) -> Self {
+        Rng(state)
     }
 
     pub fn next_u64(&mut self) -> u64 {

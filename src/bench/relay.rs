@@ -4,9 +4,9 @@
 //! delay from the request to fire to the module seeing the relay close.
 
 use crate::config::{RelayProtocol, TriggerConfig};
-use crate::trigger::emulator::{Emulator, Kind};
 use crate::trigger::serial::SerialRelay;
 use crate::trigger::{CameraLive, Trigger};
+use hw_sim::modules::{Emulator, Kind};
 use std::fmt::Write as _;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;

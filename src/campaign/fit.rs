@@ -29,6 +29,19 @@ pub struct Collision {
     pub report: Report,
 }
 
+impl Collision {
+    /// (ψ1, ψ2, σψ1, σψ2) where both ψ were measured (an unknown σ counts as 0): the point the
+    /// fit and the ψ plot use.
+    pub fn psi_point(&self) -> Option<Point> {
+        Some((
+            self.psi1?,
+            self.psi2?,
+            self.psi1_sigma.unwrap_or(0.0),
+            self.psi2_sigma.unwrap_or(0.0),
+        ))
+    }
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct FitEstimate {
     pub value: f64,
@@ -66,8 +79,8 @@ pub struct CollisionRow {
     pub outlier: bool,
 }
 
-/// (ψ1, ψ2, σ1, σ2)
-type Point = (f64, f64, f64, f64);
+/// (ψ1, ψ2, σψ1, σψ2).
+pub type Point = (f64, f64, f64, f64);
 
 fn hinge(psi1: f64, beta0: f64, c: f64) -> f64 {
     (-beta0 * psi1).max(psi1 - c)
@@ -131,23 +144,6 @@ fn fit_hinge(points: &[Point]) -> Option<(f64, f64)> {
         }
     }
     Some((b0, c))
-}
-
-/// SplitMix64, so the bootstrap gives the same intervals on every run.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn gaussian(&mut self) -> f64 {
-        let u1 = 1.0 - (self.next() >> 11) as f64 / (1u64 << 53) as f64;
-        let u2 = (self.next() >> 11) as f64 / (1u64 << 53) as f64;
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
 }
 
 /// The 97.5 % quantile of Student's t with `dof` degrees of freedom (1.96 from 120 on).
@@ -216,17 +212,7 @@ pub fn fit(collisions: &mut [Collision]) -> CampaignFit {
     let points: Vec<(usize, Point)> = collisions
         .iter()
         .enumerate()
-        .filter_map(|(i, c)| {
-            Some((
-                i,
-                (
-                    c.psi1?,
-                    c.psi2?,
-                    c.psi1_sigma.unwrap_or(0.0),
-                    c.psi2_sigma.unwrap_or(0.0),
-                ),
-            ))
-        })
+        .filter_map(|(i, c)| Some((i, c.psi_point()?)))
         .collect();
     let e_trend = if points.len() >= 3 {
         let xs: Vec<f64> = points.iter().map(|(_, p)| p.0).collect();
@@ -247,14 +233,15 @@ pub fn fit(collisions: &mut [Collision]) -> CampaignFit {
         let psi_break = c / (1.0 + b0);
         let below = pts.iter().filter(|p| p.0 < psi_break).count();
         let above = pts.len() - below;
-        let mut rng = Rng(0xB007);
+        // The project's one PRNG (SplitMix64), so the bootstrap gives the same intervals every run.
+        let mut rng = hw_sim::Rng::from_state(0xB007);
         let (mut rb, mut rc, mut rbr, mut rmu) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for _ in 0..BOOTSTRAP {
             // Resample collisions and perturb each by its own stated uncertainty: the scatter
             // of a few points alone understates how far a biased point can pull a branch.
             let sample: Vec<Point> = (0..pts.len())
                 .map(|_| {
-                    let p = pts[(rng.next() % pts.len() as u64) as usize];
+                    let p = pts[(rng.next_u64() % pts.len() as u64) as usize];
                     (
                         p.0 + p.2 * rng.gaussian(),
                         p.1 + p.3 * rng.gaussian(),

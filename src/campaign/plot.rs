@@ -9,13 +9,8 @@ pub fn draw_psi(c: &mut dyn Canvas, collisions: &[Collision], f: &CampaignFit) {
     let pts: Vec<(f64, f64, f64, f64, bool)> = collisions
         .iter()
         .filter_map(|c| {
-            Some((
-                c.psi1?,
-                c.psi2?,
-                c.psi1_sigma.unwrap_or(0.0),
-                c.psi2_sigma.unwrap_or(0.0),
-                c.outlier,
-            ))
+            let (x, y, sx, sy) = c.psi_point()?;
+            Some((x, y, sx, sy, c.outlier))
         })
         .collect();
     let x_max = pts.iter().map(|p| p.0 + p.2).fold(0.5, f64::max) * 1.1;

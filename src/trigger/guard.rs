@@ -48,6 +48,8 @@ struct Spec {
     /// The device to open (the configured port, or the simulator's pseudo-terminal).
     port: String,
     backend: String,
+    /// Whether the guard's own messages are JSON lines (`--log-format json`).
+    json_logs: bool,
 }
 
 /// The main process's side: a `Relay` whose switching happens in the guard.
@@ -92,6 +94,7 @@ impl GuardedRelay {
             trigger: trigger.clone(),
             port: port.into(),
             backend: backend.into(),
+            json_logs: crate::summary::json_progress(),
         };
         let line = serde_json::to_string(&spec).map_err(|e| fail(e.to_string()))?;
         let mut relay = GuardedRelay {
@@ -225,7 +228,7 @@ pub fn guard_main() -> i32 {
     let max_closed =
         Duration::from_secs_f64(spec.trigger.relay_pulse_ms_max.clamp(0.0, 10_000.0) / 1000.0);
     if writeln!(out, "ready").and_then(|_| out.flush()).is_err() {
-        open_hard(&mut *relay);
+        let _ = open_hard(&mut *relay);
         return 1;
     }
     let mut closed_since: Option<Instant> = None;
@@ -240,9 +243,12 @@ pub fn guard_main() -> i32 {
             Ok(None) => {
                 // The watchdog: closed for the maximum, whatever the main process thinks.
                 if closed_since.is_some() {
-                    open_hard(&mut *relay);
+                    let _ = open_hard(&mut *relay);
                     closed_since = None;
-                    eprintln!("relay guard: relay opened after trigger.relay_pulse_ms_max");
+                    say(
+                        spec.json_logs,
+                        "relay guard: relay opened after trigger.relay_pulse_ms_max",
+                    );
                 }
                 continue;
             }
@@ -271,8 +277,22 @@ pub fn guard_main() -> i32 {
         }
     }
     // The relay is opened whatever state it was left in.
-    open_hard(&mut *relay);
+    if !open_hard(&mut *relay) {
+        say(spec.json_logs, "relay guard: could not open the relay");
+    }
     0
+}
+
+/// A line on stderr, as the main process logs (text, or a JSON object).
+fn say(json: bool, message: &str) {
+    if json {
+        eprintln!(
+            "{}",
+            serde_json::json!({"level": "WARN", "message": message, "process": "relay-guard"})
+        );
+    } else {
+        eprintln!("{message}");
+    }
 }
 
 /// Lines from stdin (fd 0), read without std's buffering so that a wait can time out.
@@ -316,13 +336,13 @@ impl Lines {
     }
 }
 
-/// Opens the relay, retrying a few times: this is the last chance.
-fn open_hard(relay: &mut dyn Relay) {
+/// Opens the relay, retrying a few times: this is the last chance. Whether it answered.
+fn open_hard(relay: &mut dyn Relay) -> bool {
     for _ in 0..5 {
         if relay.set_closed(false).is_ok() {
-            return;
+            return true;
         }
         std::thread::sleep(Duration::from_millis(5));
     }
-    eprintln!("relay guard: could not open the relay");
+    false
 }

@@ -5,7 +5,6 @@
 //! `relay_pulse_ms_max`, and it cannot be fired without proof that the camera is delivering
 //! frames (`CameraLive`, which only the recorder can create).
 
-pub mod emulator;
 #[cfg(feature = "gpio")]
 pub mod gpio;
 pub mod guard;

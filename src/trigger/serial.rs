@@ -219,8 +219,8 @@ mod tests {
         assert_eq!(parse_hex("A0 zz"), None);
     }
 
-    use crate::trigger::emulator::{Emulator, Kind};
     use crate::trigger::{CameraLive, Trigger};
+    use hw_sim::modules::{Emulator, Kind};
     use std::sync::atomic::AtomicBool;
     use std::sync::Arc;
 

@@ -1,10 +1,9 @@
-//! Relay-module emulators on pseudo-terminals, for tests and `impactcam bench relay`: each
-//! speaks one protocol on the master side of a PTY pair and logs when the relay closed and
-//! opened, so what went over the wire, and when, can be checked.
+//! Relay modules in software, on pseudo-terminals, for tests and `impactcam bench relay`: each
+//! speaks one protocol (LCUS, Numato, a generic one) on the master side of a PTY pair and logs
+//! when the relay closed and opened, so what went over the wire, and when, can be checked.
 
-use serialport::{SerialPort, TTYPort};
+use serialport::TTYPort;
 use std::io::{Read, Write};
-use std::os::fd::AsRawFd;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -33,19 +32,7 @@ pub struct Emulator {
 
 impl Emulator {
     pub fn start(kind: Kind) -> std::io::Result<Emulator> {
-        let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::other)?;
-        // Not inherited by processes the test starts: when the emulator goes, its port must
-        // go with it (as an unplugged module's does), not live on in a child.
-        for fd in [master.as_raw_fd(), slave.as_raw_fd()] {
-            // SAFETY: fcntl on descriptors this function owns.
-            unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) };
-        }
-        master
-            .set_timeout(Duration::from_millis(5))
-            .map_err(std::io::Error::other)?;
-        let path = slave
-            .name()
-            .ok_or_else(|| std::io::Error::other("pty has no name"))?;
+        let (mut master, slave, path) = crate::pty::pair(Duration::from_millis(5))?;
         let log = Arc::new(Mutex::new(Vec::new()));
         let raw = Arc::new(Mutex::new(Vec::new()));
         let stop = Arc::new(AtomicBool::new(false));
@@ -71,10 +58,9 @@ impl Emulator {
                 };
                 match kind {
                     Kind::Lcus => {
-                        while pending.len() >= 4 {
-                            let f: Vec<u8> = pending.drain(..4).collect();
-                            if f[0] == 0xA0 && f[3] == f[0].wrapping_add(f[1]).wrapping_add(f[2]) {
-                                record(f[2] == 1);
+                        for heard in crate::lcus::decode(&mut pending) {
+                            if let crate::lcus::Heard::Switch { closed, .. } = heard {
+                                record(closed);
                             }
                         }
                     }
