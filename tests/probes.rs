@@ -269,3 +269,64 @@ fn logs_are_json_when_asked_and_never_coloured_when_redirected() {
         "ANSI codes in a redirected log"
     );
 }
+
+/// A tracks CSV as Tracker or DLTdv export it — a byte-order mark, quoted header cells — gives
+/// the same report as the plain file; and a campaign table keeps a source name with a comma.
+#[test]
+fn csv_with_a_bom_and_quotes_reads_like_plain_csv() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let plain = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus/tracks/simulated-collision.csv"),
+    )
+    .unwrap();
+    let (head, rest) = plain.split_once('\n').unwrap();
+    let quoted: Vec<String> = head.split(',').map(|c| format!("\"{c}\"")).collect();
+    std::fs::write(t.join("plain.csv"), &plain).unwrap();
+    std::fs::write(
+        t.join("export.csv"),
+        format!(
+            "\u{feff}{}\r\n{}",
+            quoted.join(","),
+            rest.replace('\n', "\r\n")
+        ),
+    )
+    .unwrap();
+    std::fs::write(t.join("c.toml"), "").unwrap();
+    let a = common::run_json(
+        t,
+        &[
+            "analyze",
+            "--tracks",
+            "plain.csv",
+            "--config",
+            "c.toml",
+            "--json",
+        ],
+    );
+    let b = common::run_json(
+        t,
+        &[
+            "analyze",
+            "--tracks",
+            "export.csv",
+            "--config",
+            "c.toml",
+            "--json",
+        ],
+    );
+    assert!(a["e"]["value"].is_number(), "{a}");
+    assert_eq!(a["e"], b["e"]);
+    assert_eq!(a["tracks"], b["tracks"]);
+
+    // A source (the report's file name) with a comma in it survives collisions.csv.
+    std::fs::write(t.join("glass, run 3.json"), a.to_string()).unwrap();
+    let out = impactcam(t, &["fit", "glass, run 3.json", "--out", "fit"]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let table = std::fs::read_to_string(t.join("fit/collisions.csv")).unwrap();
+    let row = table.lines().nth(1).unwrap();
+    assert!(
+        row.starts_with("\"glass, run 3.json\","),
+        "a source with a comma is quoted: {row}"
+    );
+}

@@ -90,7 +90,9 @@ pub struct SphereResult {
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ViewValues {
+    #[serde(deserialize_with = "scalar_nan_if_null")]
     pub direct: Option<Scalar>,
+    #[serde(deserialize_with = "scalar_nan_if_null")]
     pub mirror: Option<Scalar>,
 }
 
@@ -116,7 +118,10 @@ pub struct SphereTrack {
 pub struct ViewTrack {
     /// Sub-pixel centre (u, v), full-frame pixel coordinates.
     pub centre_px: [f64; 2],
+    /// Null where the digitising software gave none (a tracks CSV): read back as NaN.
+    #[serde(deserialize_with = "nan_if_null_2")]
     pub uncertainty_px: [f64; 2],
+    #[serde(deserialize_with = "nan_if_null")]
     pub diameter_px: f64,
     /// Markers found inside the disc (sub-pixel image positions), lifted to 3-D for spin.
     pub markers_px: Vec<[f64; 2]>,
@@ -175,4 +180,22 @@ pub struct Unmeasured {
     pub frame: u64,
     pub view: String,
     pub reason: String,
+}
+
+/// serde writes a NaN as null; reading it back gives the NaN again (not an error).
+fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
+fn nan_if_null_2<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
+    let v = <[Option<f64>; 2]>::deserialize(d)?;
+    Ok(v.map(|x| x.unwrap_or(f64::NAN)))
+}
+
+fn scalar_nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Scalar>, D::Error> {
+    let v = Option::<Estimate<Option<f64>>>::deserialize(d)?;
+    Ok(v.map(|e| Estimate {
+        value: e.value.unwrap_or(f64::NAN),
+        uncertainty: e.uncertainty.unwrap_or(f64::NAN),
+    }))
 }

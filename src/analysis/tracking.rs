@@ -55,339 +55,451 @@ pub fn measure_all(
 ) -> Result<(Vec<FrameObs>, Vec<Unmeasured>), AnalysisError> {
     let mut img = GreyImage::new();
     let mut out = Vec::with_capacity(source.len());
-    let mut unmeasured = Vec::new();
-    let mut memory: Vec<ViewMemory> = vec![ViewMemory::default(); views.len()];
-    // Primary-view world x of each sphere: (time s, x mm), most recent last.
-    let mut x_history: [Vec<(f64, f64)>; 2] = [Vec::new(), Vec::new()];
-    // Free flight is a straight line in x and nearly one in the image over a few frames.
-    let max_gap_s = 15.0 / source.source().frame_rate_hz;
-    let max_gap_x_s = 60.0 / source.source().frame_rate_hz;
-    // Only recent evidence labels a sphere inside a silhouette of two: x extrapolated over many
-    // frames, or a position predicted across the collision's kink, can swap two spheres that
-    // pass each other.
-    let recent_s = 3.0 / source.source().frame_rate_hz;
+    let mut tracker = Tracker::new(views.len(), source.source().frame_rate_hz);
     let n = source.len();
     for i in 0..n {
         let meta = source.meta(i);
         source.read(i, &mut img)?;
-        let mut spheres: [Vec<Option<Measurement>>; 2] =
-            [vec![None; views.len()], vec![None; views.len()]];
+        let cx = FrameCtx {
+            i,
+            t: meta.timestamp_ns as f64 * 1e-9,
+            img: &img,
+            views,
+            cfg,
+            dots,
+        };
+        let spheres = tracker.measure_frame(&cx);
+        out.push(FrameObs {
+            index: i as u64,
+            frame_id: meta.frame_id,
+            time_s: cx.t,
+            spheres,
+        });
+        progress(i + 1, n);
+    }
+    Ok((out, tracker.unmeasured))
+}
+
+/// One frame being measured: its index and time, its pixels, and what it is measured with.
+struct FrameCtx<'a> {
+    i: usize,
+    t: f64,
+    img: &'a GreyImage,
+    views: &'a [View],
+    cfg: &'a Config,
+    dots: &'a DotMasks,
+}
+
+/// Each sphere's measurement in each view of one frame.
+type Spheres = [Vec<Option<Measurement>>; 2];
+
+/// What tracking remembers from frame to frame: each view's memory of where a and b were, the
+/// primary view's recent x of each, and what could not be measured.
+struct Tracker {
+    memory: Vec<ViewMemory>,
+    /// Primary-view world x of each sphere: (time s, x mm), most recent last.
+    x_history: [Vec<(f64, f64)>; 2],
+    unmeasured: Vec<Unmeasured>,
+    max_gap_s: f64,
+    max_gap_x_s: f64,
+    recent_s: f64,
+}
+
+impl Tracker {
+    fn new(views: usize, frame_rate_hz: f64) -> Tracker {
+        Tracker {
+            memory: vec![ViewMemory::default(); views],
+            x_history: [Vec::new(), Vec::new()],
+            unmeasured: Vec::new(),
+            // Free flight is a straight line in x and nearly one in the image over a few frames.
+            max_gap_s: 15.0 / frame_rate_hz,
+            max_gap_x_s: 60.0 / frame_rate_hz,
+            // Only recent evidence labels a sphere inside a silhouette of two: x extrapolated
+            // over many frames, or a position predicted across the collision's kink, can swap
+            // two spheres that pass each other.
+            recent_s: 3.0 / frame_rate_hz,
+        }
+    }
+
+    /// Both spheres in every view of one frame, then what the frame teaches the memory.
+    fn measure_frame(&mut self, cx: &FrameCtx) -> Spheres {
+        let mut spheres: Spheres = [vec![None; cx.views.len()], vec![None; cx.views.len()]];
         let mut deferred: Option<(Blob, ViewLevels)> = None;
-        for (vi, view) in views.iter().enumerate() {
-            let dots = dots.get(&(i, vi)).map(Vec::as_slice).unwrap_or(&[]);
-            let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
-            let r_mean = 0.5 * (radius[0] + radius[1]);
-            let lv = levels(&img, view);
-            let blobs = find_blobs(&img, view, &lv, r_mean, cfg.analysis.threshold_fraction);
-            // Views after the first take identity from it through the x both views see.
-            // Where the primary view does not measure a sphere in this frame, its x is
-            // extrapolated from the primary's recent frames (x has no gravity: a straight line).
-            let primary_x: [Option<f64>; 2] = if vi > 0 {
-                [0, 1].map(|s| {
-                    spheres[s][0]
-                        .as_ref()
-                        .map(|m| world_x(&views[0], m.centre_px))
-                        .or_else(|| {
-                            extrapolate(&x_history[s], meta.timestamp_ns as f64 * 1e-9, max_gap_x_s)
-                        })
-                })
-            } else {
-                [None, None]
-            };
-            let contact_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
-            // One silhouette holding both spheres in a secondary view (after a collision they
-            // can stay one behind the other in the mirror to the end of the recording): each
-            // sphere's visible arc is fitted on its own, and labelled by the x the primary view
-            // measured, or by where this view last saw each.
-            if vi > 0 && blobs.len() == 1 && !blobs[0].clipped {
-                let close =
-                    matches!(primary_x, [Some(xa), Some(xb)] if (xa - xb).abs() < contact_mm);
-                if blobs[0].merged || close {
-                    let t = meta.timestamp_ns as f64 * 1e-9;
-                    let r_seen: Vec<f64> = memory[vi].radius.iter().flatten().copied().collect();
-                    let r_fit = if r_seen.is_empty() {
-                        r_mean
-                    } else {
-                        r_seen.iter().sum::<f64>() / r_seen.len() as f64
-                    };
-                    let fits =
-                        split_pair(&img, view, blobs[0].centroid, r_fit, lv.background, lv.peak);
-                    let fresh_x = [0, 1].map(|s| {
-                        spheres[s][0]
-                            .as_ref()
-                            .map(|m| world_x(&views[0], m.centre_px))
-                            .or_else(|| extrapolate(&x_history[s], t, recent_s))
-                    });
-                    let predicted = [0, 1].map(|s| memory[vi].predict(s, t, recent_s));
-                    let labels = label_split(&fits, view, fresh_x, predicted, r_mean);
-                    if labels.iter().any(|l| l.is_some()) {
-                        // The sphere nearer this view's camera, as the primary view places them
-                        // along this view's line of sight: all of its disc is its own, so its
-                        // dots are its own too. The other's dots near the overlap may be either.
-                        let fi = view.facing.iamax();
-                        let depth = |s: usize| -> Option<f64> {
-                            let m = spheres[s][0].as_ref()?;
-                            views[0]
-                                .unproject(m.centre_px)
-                                .iter()
-                                .find(|(axis, _)| *axis == fi)
-                                .map(|(_, x)| x * view.facing[fi])
-                        };
-                        let front = match (depth(0), depth(1)) {
-                            (Some(da), Some(db)) if (da - db).abs() > 0.5 * contact_mm => {
-                                Some(if da > db { 0 } else { 1 })
-                            }
-                            _ => None,
-                        };
-                        // The split circles rest on the outline; with the front one known, both
-                        // are refitted on the grey levels, the front disc hiding the back one.
-                        // A refit that moves a disc by more than a fifth of a pixel has slid
-                        // along a crescent too thin to hold it (the split circles are off by
-                        // hundredths, not tenths).
-                        let behind = match (labels, front) {
-                            ([Some(fa), Some(fb)], Some(fr)) => {
-                                profile_fit_behind(&img, view, [fa, fb], fr, lv.background, dots)
-                                    .filter(|pair| {
-                                        pair.iter().zip([fa, fb]).all(|(n, o)| {
-                                            (n.centre[0] - o.centre[0])
-                                                .hypot(n.centre[1] - o.centre[1])
-                                                < MAX_REFIT_MOVE_PX
-                                        })
-                                    })
-                            }
-                            _ => None,
-                        };
-                        let labels: [Option<&CircleFit>; 2] = match &behind {
-                            Some(pair) => [Some(&pair[0]), Some(&pair[1])],
-                            None => labels,
-                        };
-                        for (s, f) in labels.iter().enumerate() {
-                            match f {
-                                Some(f) => {
-                                    let dots = if front == Some(s) {
-                                        markers::find(
-                                            &img,
-                                            view,
-                                            f,
-                                            cfg.spheres.sphere(s).0 / 2.0,
-                                            cfg.analysis.marker_diameter_mm,
-                                            lv.noise_sigma,
-                                        )
-                                    } else {
-                                        Vec::new()
-                                    };
-                                    spheres[s][vi] = Some(Measurement {
-                                        centre_px: f.centre,
-                                        // The thesis baseline would click this disc's
-                                        // centre, not the merged silhouette's.
-                                        blob_centroid_px: f.centre,
-                                        sigma_px: f.centre_sigma,
-                                        diameter_px: 2.0 * f.radius,
-                                        markers: dots,
-                                    });
-                                    memory[vi].last[s] = Some(f.centre);
-                                    memory[vi].history[s].push((t, f.centre));
-                                }
-                                None => unmeasured.push(Unmeasured {
-                                    frame: i as u64,
-                                    view: view.kind.name().into(),
-                                    reason: format!(
-                                        "{}: hidden by the other sphere in this view",
-                                        ["a", "b"][s]
-                                    ),
-                                }),
-                            }
-                        }
-                        continue;
-                    }
-                }
-            }
-            let assigned = match primary_x {
-                // Closer in x than a diameter, one may hide the other in this view: a single
-                // blob is then both, partly, and neither centre can be trusted.
-                [Some(xa), Some(xb)] if (xa - xb).abs() < contact_mm && blobs.len() < 2 => {
-                    if !blobs.is_empty() {
-                        unmeasured.push(Unmeasured {
-                            frame: i as u64,
-                            view: view.kind.name().into(),
-                            reason: "a, b: one hides the other in this view".into(),
-                        });
-                    }
-                    [None, None]
-                }
-                _ if memory[vi].both_in_previous && blobs.len() == 2 => {
-                    assign_by_continuity(&blobs, &memory[vi])
-                }
-                // A secondary view with nothing from the primary and no continuity of its own
-                // cannot tell a from b once they have been seen together: its projection of the
-                // contact normal does not keep its sign through a grazing pass.
-                [None, None] if vi > 0 && memory[vi].a_to_b.is_some() => {
-                    if !blobs.is_empty() {
-                        unmeasured.push(Unmeasured {
-                            frame: i as u64,
-                            view: view.kind.name().into(),
-                            reason: "identity of a and b unknown in this view (the primary view lost both)".into(),
-                        });
-                    }
-                    [None, None]
-                }
-                [None, None] => assign(
-                    &blobs,
-                    view,
-                    &memory[vi],
-                    meta.timestamp_ns as f64 * 1e-9,
-                    max_gap_s,
-                ),
-                x => assign_by_x(&blobs, view, x, contact_mm),
-            };
-            // Two spheres touching in the primary view are one silhouette, in the frames that
-            // fix the contact best. Where this view saw both in the last frames, each is fitted
-            // from where they were heading, with the other's side left out (then both together,
-            // below, where their rings meet).
-            let mut touching = false;
-            let mut fitted: [Option<CircleFit>; 2] = [None, None];
-            if vi == 0 && blobs.len() == 1 && blobs[0].merged && memory[vi].both_in_previous {
-                let t = meta.timestamp_ns as f64 * 1e-9;
-                let predicted = [0, 1].map(|s| memory[vi].predict(s, t, recent_s));
-                if let [Some(pa), Some(pb)] = predicted {
-                    if let Some(pair) =
-                        measure_touching(&img, view, &blobs[0], [pa, pb], radius, &lv, cfg, dots)
-                    {
-                        for (s, (m, f)) in pair.into_iter().enumerate() {
-                            fitted[s] = Some(f);
-                            spheres[s][vi] = Some(m);
-                            memory[vi].last[s] = Some(f.centre);
-                            memory[vi].radius[s] = Some(f.radius);
-                            memory[vi].history[s].push((t, f.centre));
-                        }
-                        touching = true;
-                    }
-                }
-            }
-            if let [only] = blobs.as_slice() {
-                let reason = if touching {
-                    None
-                } else if only.merged {
-                    Some("a, b: silhouettes merged")
-                } else if assigned.iter().all(|a| a.is_none()) && vi > 0 {
-                    Some("one sphere seen and no earlier frame to tell whether it is a or b")
-                } else {
-                    None
-                };
-                if let Some(reason) = reason {
-                    unmeasured.push(Unmeasured {
-                        frame: i as u64,
+        for (vi, view) in cx.views.iter().enumerate() {
+            self.measure_view(cx, vi, view, &mut spheres, &mut deferred);
+        }
+        if let Some((blob, lv)) = deferred.take() {
+            self.label_by_secondary_x(cx, &blob, &lv, &mut spheres);
+        }
+        self.remember(cx, &spheres);
+        spheres
+    }
+
+    /// One view of one frame: blobs, their a/b labels (by x from the primary view, continuity,
+    /// or position), sub-pixel fits, and the reasons for what could not be measured. A lone
+    /// blob the primary view cannot label yet is left in `deferred` for the secondary's x.
+    fn measure_view(
+        &mut self,
+        cx: &FrameCtx,
+        vi: usize,
+        view: &View,
+        spheres: &mut Spheres,
+        deferred: &mut Option<(Blob, ViewLevels)>,
+    ) {
+        let dots = cx.dots.get(&(cx.i, vi)).map(Vec::as_slice).unwrap_or(&[]);
+        let radius = [0, 1].map(|s| cx.cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
+        let r_mean = 0.5 * (radius[0] + radius[1]);
+        let lv = levels(cx.img, view);
+        let blobs = find_blobs(
+            cx.img,
+            view,
+            &lv,
+            r_mean,
+            cx.cfg.analysis.threshold_fraction,
+        );
+        // Views after the first take identity from it through the x both views see.
+        // Where the primary view does not measure a sphere in this frame, its x is
+        // extrapolated from the primary's recent frames (x has no gravity: a straight line).
+        let primary_x: [Option<f64>; 2] = if vi > 0 {
+            [0, 1].map(|s| {
+                spheres[s][0]
+                    .as_ref()
+                    .map(|m| world_x(&cx.views[0], m.centre_px))
+                    .or_else(|| extrapolate(&self.x_history[s], cx.t, self.max_gap_x_s))
+            })
+        } else {
+            [None, None]
+        };
+        let contact_mm = 0.5 * (cx.cfg.spheres.sphere(0).0 + cx.cfg.spheres.sphere(1).0);
+        // One silhouette holding both spheres in a secondary view (after a collision they
+        // can stay one behind the other in the mirror to the end of the recording): each
+        // sphere's visible arc is fitted on its own, and labelled by the x the primary view
+        // measured, or by where this view last saw each.
+        if vi > 0
+            && self.measure_split_silhouette(
+                cx, vi, view, &lv, dots, &blobs, primary_x, contact_mm, r_mean, spheres,
+            )
+        {
+            return;
+        }
+        let assigned = match primary_x {
+            // Closer in x than a diameter, one may hide the other in this view: a single
+            // blob is then both, partly, and neither centre can be trusted.
+            [Some(xa), Some(xb)] if (xa - xb).abs() < contact_mm && blobs.len() < 2 => {
+                if !blobs.is_empty() {
+                    self.unmeasured.push(Unmeasured {
+                        frame: cx.i as u64,
                         view: view.kind.name().into(),
-                        reason: reason.into(),
+                        reason: "a, b: one hides the other in this view".into(),
                     });
                 }
+                [None, None]
             }
-            // The primary view's first frames with one sphere only: which one it is, the
-            // secondary view (processed next) can tell by x.
-            if vi == 0
-                && blobs.len() == 1
-                && !blobs[0].merged
-                && assigned.iter().all(|x| x.is_none())
-            {
-                deferred = Some((blobs[0].clone(), lv));
+            _ if self.memory[vi].both_in_previous && blobs.len() == 2 => {
+                assign_by_continuity(&blobs, &self.memory[vi])
             }
-            for (s, blob) in assigned.iter().enumerate() {
-                let Some(b) = blob else { continue };
-                let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
-                match measure_blob(&img, view, b, s, radius[s], other, &lv, cfg, dots) {
-                    Ok((m, f)) => {
+            // A secondary view with nothing from the primary and no continuity of its own
+            // cannot tell a from b once they have been seen together: its projection of the
+            // contact normal does not keep its sign through a grazing pass.
+            [None, None] if vi > 0 && self.memory[vi].a_to_b.is_some() => {
+                if !blobs.is_empty() {
+                    self.unmeasured.push(Unmeasured {
+                        frame: cx.i as u64,
+                        view: view.kind.name().into(),
+                        reason:
+                            "identity of a and b unknown in this view (the primary view lost both)"
+                                .into(),
+                    });
+                }
+                [None, None]
+            }
+            [None, None] => assign(&blobs, view, &self.memory[vi], cx.t, self.max_gap_s),
+            x => assign_by_x(&blobs, view, x, contact_mm),
+        };
+        // Two spheres touching in the primary view are one silhouette, in the frames that
+        // fix the contact best. Where this view saw both in the last frames, each is fitted
+        // from where they were heading, with the other's side left out (then both together,
+        // below, where their rings meet).
+        let mut touching = false;
+        let mut fitted: [Option<CircleFit>; 2] = [None, None];
+        if vi == 0 && blobs.len() == 1 && blobs[0].merged && self.memory[vi].both_in_previous {
+            let t = cx.t;
+            let predicted = [0, 1].map(|s| self.memory[vi].predict(s, t, self.recent_s));
+            if let [Some(pa), Some(pb)] = predicted {
+                if let Some(pair) =
+                    measure_touching(cx.img, view, &blobs[0], [pa, pb], radius, &lv, cx.cfg, dots)
+                {
+                    for (s, (m, f)) in pair.into_iter().enumerate() {
                         fitted[s] = Some(f);
                         spheres[s][vi] = Some(m);
-                        memory[vi].last[s] = Some(f.centre);
-                        memory[vi].radius[s] = Some(f.radius);
-                        memory[vi].history[s].push((meta.timestamp_ns as f64 * 1e-9, f.centre));
+                        self.memory[vi].last[s] = Some(f.centre);
+                        self.memory[vi].radius[s] = Some(f.radius);
+                        self.memory[vi].history[s].push((t, f.centre));
                     }
-                    Err(reason) => unmeasured.push(Unmeasured {
-                        frame: i as u64,
-                        view: view.kind.name().into(),
-                        reason,
-                    }),
+                    touching = true;
                 }
             }
-            if let [Some(fa), Some(fb)] = &fitted {
-                if rings_meet(fa, fb) {
-                    if let Some(pair) = profile_fit_pair(&img, view, [fa, fb], lv.background, dots)
-                    {
-                        for (s, f) in pair.iter().enumerate() {
-                            if let Some(m) = spheres[s][vi].as_mut() {
-                                m.centre_px = f.centre;
-                                m.sigma_px = f.centre_sigma;
-                                m.diameter_px = 2.0 * f.radius;
-                            }
-                            memory[vi].last[s] = Some(f.centre);
-                            memory[vi].radius[s] = Some(f.radius);
-                            if let Some(h) = memory[vi].history[s].last_mut() {
-                                h.1 = f.centre;
-                            }
-                        }
-                    }
-                }
-            }
-            if blobs.len() > 2 {
-                unmeasured.push(Unmeasured {
-                    frame: i as u64,
+        }
+        if let [only] = blobs.as_slice() {
+            let reason = if touching {
+                None
+            } else if only.merged {
+                Some("a, b: silhouettes merged")
+            } else if assigned.iter().all(|a| a.is_none()) && vi > 0 {
+                Some("one sphere seen and no earlier frame to tell whether it is a or b")
+            } else {
+                None
+            };
+            if let Some(reason) = reason {
+                self.unmeasured.push(Unmeasured {
+                    frame: cx.i as u64,
                     view: view.kind.name().into(),
-                    reason: format!(
-                        "{} bright blobs, expected at most 2; the two largest were used",
-                        blobs.len()
-                    ),
+                    reason: reason.into(),
                 });
             }
         }
-        if let Some((blob, lv)) = deferred.take() {
-            let view = &views[0];
-            let dots0 = dots.get(&(i, 0)).map(Vec::as_slice).unwrap_or(&[]);
-            let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
-            let contact_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
-            // x of a and b as the secondary view measured them in this frame; a sphere it
-            // did not measure matches nothing.
-            let x = [0, 1].map(|s| {
-                (1..views.len()).find_map(|vj| {
-                    spheres[s][vj]
-                        .as_ref()
-                        .map(|m| world_x(&views[vj], m.centre_px))
-                })
-            });
-            let both = x[0]
-                .zip(x[1])
-                .is_some_and(|(xa, xb)| (xa - xb).abs() > contact_mm);
-            let labels = if both {
-                assign_by_x(std::slice::from_ref(&blob), view, x, contact_mm)
-            } else {
-                [None, None]
-            };
-            match labels.iter().position(|l| l.is_some()) {
-                Some(s) => match measure_blob(&img, view, &blob, s, radius[s], None, &lv, cfg, dots0) {
-                    Ok((m, f)) => {
-                        spheres[s][0] = Some(m);
-                        memory[0].last[s] = Some(f.centre);
-                        memory[0].radius[s] = Some(f.radius);
-                        memory[0].history[s].push((meta.timestamp_ns as f64 * 1e-9, f.centre));
-                    }
-                    Err(reason) => unmeasured.push(Unmeasured {
-                        frame: i as u64,
-                        view: view.kind.name().into(),
-                        reason,
-                    }),
-                },
-                None => unmeasured.push(Unmeasured {
-                    frame: i as u64,
+        // The primary view's first frames with one sphere only: which one it is, the
+        // secondary view (processed next) can tell by x.
+        if vi == 0 && blobs.len() == 1 && !blobs[0].merged && assigned.iter().all(|x| x.is_none()) {
+            *deferred = Some((blobs[0].clone(), lv));
+        }
+        for (s, blob) in assigned.iter().enumerate() {
+            let Some(b) = blob else { continue };
+            let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
+            match measure_blob(cx.img, view, b, s, radius[s], other, &lv, cx.cfg, dots) {
+                Ok((m, f)) => {
+                    fitted[s] = Some(f);
+                    spheres[s][vi] = Some(m);
+                    self.memory[vi].last[s] = Some(f.centre);
+                    self.memory[vi].radius[s] = Some(f.radius);
+                    self.memory[vi].history[s].push((cx.t, f.centre));
+                }
+                Err(reason) => self.unmeasured.push(Unmeasured {
+                    frame: cx.i as u64,
                     view: view.kind.name().into(),
-                    reason: "one sphere seen and no earlier frame, nor the other view, tells whether it is a or b".into(),
+                    reason,
                 }),
             }
         }
-        for (s, hist) in x_history.iter_mut().enumerate() {
-            if let (Some(m), Some(view)) = (&spheres[s][0], views.first()) {
-                hist.push((meta.timestamp_ns as f64 * 1e-9, world_x(view, m.centre_px)));
+        if let [Some(fa), Some(fb)] = &fitted {
+            if rings_meet(fa, fb) {
+                if let Some(pair) = profile_fit_pair(cx.img, view, [fa, fb], lv.background, dots) {
+                    for (s, f) in pair.iter().enumerate() {
+                        if let Some(m) = spheres[s][vi].as_mut() {
+                            m.centre_px = f.centre;
+                            m.sigma_px = f.centre_sigma;
+                            m.diameter_px = 2.0 * f.radius;
+                        }
+                        self.memory[vi].last[s] = Some(f.centre);
+                        self.memory[vi].radius[s] = Some(f.radius);
+                        if let Some(h) = self.memory[vi].history[s].last_mut() {
+                            h.1 = f.centre;
+                        }
+                    }
+                }
             }
         }
-        for (vi, mem) in memory.iter_mut().enumerate() {
+        if blobs.len() > 2 {
+            self.unmeasured.push(Unmeasured {
+                frame: cx.i as u64,
+                view: view.kind.name().into(),
+                reason: format!(
+                    "{} bright blobs, expected at most 2; the two largest were used",
+                    blobs.len()
+                ),
+            });
+        }
+    }
+
+    /// A secondary view whose one silhouette holds both spheres: split into two circles,
+    /// labelled by the primary view's x or this view's memory, refitted with the front disc
+    /// hiding the back one where the primary view says which is in front. Whether it handled
+    /// the view (else the view is measured blob by blob).
+    #[allow(clippy::too_many_arguments)]
+    fn measure_split_silhouette(
+        &mut self,
+        cx: &FrameCtx,
+        vi: usize,
+        view: &View,
+        lv: &ViewLevels,
+        dots: &[DotMask],
+        blobs: &[Blob],
+        primary_x: [Option<f64>; 2],
+        contact_mm: f64,
+        r_mean: f64,
+        spheres: &mut Spheres,
+    ) -> bool {
+        if vi > 0 && blobs.len() == 1 && !blobs[0].clipped {
+            let close = matches!(primary_x, [Some(xa), Some(xb)] if (xa - xb).abs() < contact_mm);
+            if blobs[0].merged || close {
+                let t = cx.t;
+                let r_seen: Vec<f64> = self.memory[vi].radius.iter().flatten().copied().collect();
+                let r_fit = if r_seen.is_empty() {
+                    r_mean
+                } else {
+                    r_seen.iter().sum::<f64>() / r_seen.len() as f64
+                };
+                let fits = split_pair(
+                    cx.img,
+                    view,
+                    blobs[0].centroid,
+                    r_fit,
+                    lv.background,
+                    lv.peak,
+                );
+                let fresh_x = [0, 1].map(|s| {
+                    spheres[s][0]
+                        .as_ref()
+                        .map(|m| world_x(&cx.views[0], m.centre_px))
+                        .or_else(|| extrapolate(&self.x_history[s], t, self.recent_s))
+                });
+                let predicted = [0, 1].map(|s| self.memory[vi].predict(s, t, self.recent_s));
+                let labels = label_split(&fits, view, fresh_x, predicted, r_mean);
+                if labels.iter().any(|l| l.is_some()) {
+                    // The sphere nearer this view's camera, as the primary view places them
+                    // along this view's line of sight: all of its disc is its own, so its
+                    // dots are its own too. The other's dots near the overlap may be either.
+                    let fi = view.facing.iamax();
+                    let depth = |s: usize| -> Option<f64> {
+                        let m = spheres[s][0].as_ref()?;
+                        cx.views[0]
+                            .unproject(m.centre_px)
+                            .iter()
+                            .find(|(axis, _)| *axis == fi)
+                            .map(|(_, x)| x * view.facing[fi])
+                    };
+                    let front = match (depth(0), depth(1)) {
+                        (Some(da), Some(db)) if (da - db).abs() > 0.5 * contact_mm => {
+                            Some(if da > db { 0 } else { 1 })
+                        }
+                        _ => None,
+                    };
+                    // The split circles rest on the outline; with the front one known, both
+                    // are refitted on the grey levels, the front disc hiding the back one.
+                    // A refit that moves a disc by more than a fifth of a pixel has slid
+                    // along a crescent too thin to hold it (the split circles are off by
+                    // hundredths, not tenths).
+                    let behind = match (labels, front) {
+                        ([Some(fa), Some(fb)], Some(fr)) => {
+                            profile_fit_behind(cx.img, view, [fa, fb], fr, lv.background, dots)
+                                .filter(|pair| {
+                                    pair.iter().zip([fa, fb]).all(|(n, o)| {
+                                        (n.centre[0] - o.centre[0]).hypot(n.centre[1] - o.centre[1])
+                                            < MAX_REFIT_MOVE_PX
+                                    })
+                                })
+                        }
+                        _ => None,
+                    };
+                    let labels: [Option<&CircleFit>; 2] = match &behind {
+                        Some(pair) => [Some(&pair[0]), Some(&pair[1])],
+                        None => labels,
+                    };
+                    for (s, f) in labels.iter().enumerate() {
+                        match f {
+                            Some(f) => {
+                                let dots = if front == Some(s) {
+                                    markers::find(
+                                        cx.img,
+                                        view,
+                                        f,
+                                        cx.cfg.spheres.sphere(s).0 / 2.0,
+                                        cx.cfg.analysis.marker_diameter_mm,
+                                        lv.noise_sigma,
+                                    )
+                                } else {
+                                    Vec::new()
+                                };
+                                spheres[s][vi] = Some(Measurement {
+                                    centre_px: f.centre,
+                                    // The thesis baseline would click this disc's
+                                    // centre, not the merged silhouette's.
+                                    blob_centroid_px: f.centre,
+                                    sigma_px: f.centre_sigma,
+                                    diameter_px: 2.0 * f.radius,
+                                    markers: dots,
+                                });
+                                self.memory[vi].last[s] = Some(f.centre);
+                                self.memory[vi].history[s].push((t, f.centre));
+                            }
+                            None => self.unmeasured.push(Unmeasured {
+                                frame: cx.i as u64,
+                                view: view.kind.name().into(),
+                                reason: format!(
+                                    "{}: hidden by the other sphere in this view",
+                                    ["a", "b"][s]
+                                ),
+                            }),
+                        }
+                    }
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// The primary view's lone sphere, labelled by the x the secondary view measured in the
+    /// same frame.
+    fn label_by_secondary_x(
+        &mut self,
+        cx: &FrameCtx,
+        blob: &Blob,
+        lv: &ViewLevels,
+        spheres: &mut Spheres,
+    ) {
+        let view = &cx.views[0];
+        let dots0 = cx.dots.get(&(cx.i, 0)).map(Vec::as_slice).unwrap_or(&[]);
+        let radius = [0, 1].map(|s| cx.cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
+        let contact_mm = 0.5 * (cx.cfg.spheres.sphere(0).0 + cx.cfg.spheres.sphere(1).0);
+        // x of a and b as the secondary view measured them in this frame; a sphere it
+        // did not measure matches nothing.
+        let x = [0, 1].map(|s| {
+            (1..cx.views.len()).find_map(|vj| {
+                spheres[s][vj]
+                    .as_ref()
+                    .map(|m| world_x(&cx.views[vj], m.centre_px))
+            })
+        });
+        let both = x[0]
+            .zip(x[1])
+            .is_some_and(|(xa, xb)| (xa - xb).abs() > contact_mm);
+        let labels = if both {
+            assign_by_x(std::slice::from_ref(blob), view, x, contact_mm)
+        } else {
+            [None, None]
+        };
+        match labels.iter().position(|l| l.is_some()) {
+            Some(s) => match measure_blob(cx.img, view, &blob, s, radius[s], None, &lv, cx.cfg, dots0) {
+                Ok((m, f)) => {
+                    spheres[s][0] = Some(m);
+                    self.memory[0].last[s] = Some(f.centre);
+                    self.memory[0].radius[s] = Some(f.radius);
+                    self.memory[0].history[s].push((cx.t, f.centre));
+                }
+                Err(reason) => self.unmeasured.push(Unmeasured {
+                    frame: cx.i as u64,
+                    view: view.kind.name().into(),
+                    reason,
+                }),
+            },
+            None => self.unmeasured.push(Unmeasured {
+                frame: cx.i as u64,
+                view: view.kind.name().into(),
+                reason: "one sphere seen and no earlier frame, nor the other view, tells whether it is a or b".into(),
+            }),
+        }
+    }
+
+    /// The frame's measurements into the memory: the primary view's x of each sphere, and per
+    /// view whether both were seen and the direction from a to b.
+    fn remember(&mut self, cx: &FrameCtx, spheres: &Spheres) {
+        for (s, hist) in self.x_history.iter_mut().enumerate() {
+            if let (Some(m), Some(view)) = (&spheres[s][0], cx.views.first()) {
+                hist.push((cx.t, world_x(view, m.centre_px)));
+            }
+        }
+        for (vi, mem) in self.memory.iter_mut().enumerate() {
             mem.both_in_previous = spheres[0][vi].is_some() && spheres[1][vi].is_some();
             if let (Some(a), Some(b)) = (&spheres[0][vi], &spheres[1][vi]) {
                 let (du, dv) = (
@@ -400,15 +512,7 @@ pub fn measure_all(
                 }
             }
         }
-        out.push(FrameObs {
-            index: i as u64,
-            frame_id: meta.frame_id,
-            time_s: meta.timestamp_ns as f64 * 1e-9,
-            spheres,
-        });
-        progress(i + 1, n);
     }
-    Ok((out, unmeasured))
 }
 
 /// How far the grey-level refit of a split silhouette may move a disc from the split's own

@@ -32,14 +32,20 @@ pub fn read(
     frame_rate_hz: f64,
 ) -> Result<(Input, Vec<FrameObs>), AnalysisError> {
     let text = std::fs::read_to_string(path).map_err(|e| err(path, format!("cannot read: {e}")))?;
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
-    let Some((_, header)) = lines.next() else {
+    // Exports from Tracker or DLTdv may start with a byte-order mark and quote their cells.
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.trim_start_matches('\u{feff}').as_bytes());
+    let header = reader
+        .headers()
+        .map_err(|e| err(path, format!("header line: {e}")))?
+        .clone();
+    if header.iter().all(|c| c.is_empty()) {
         return Err(err(path, "empty file, expected a header line".into()));
-    };
-    let cols: Vec<String> = header.split(',').map(|c| c.trim().to_lowercase()).collect();
+    }
+    let cols: Vec<String> = header.iter().map(|c| c.to_lowercase()).collect();
     let col = |name: &str| cols.iter().position(|c| c == name);
     let need = |name: &str| {
         col(name).ok_or_else(|| {
@@ -58,10 +64,14 @@ pub fn read(
     );
     let ct = col("time_s");
     let mut frames: BTreeMap<u64, FrameObs> = BTreeMap::new();
-    for (lineno, line) in lines {
-        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-        let at = |i: usize| cells.get(i).copied().unwrap_or("");
-        let bad = |what: &str| err(path, format!("line {}: {what}", lineno + 1));
+    for record in reader.records() {
+        let record = record.map_err(|e| err(path, e.to_string()))?;
+        if record.iter().all(|c| c.is_empty()) {
+            continue;
+        }
+        let line = record.position().map_or(0, |p| p.line());
+        let at = |i: usize| record.get(i).unwrap_or("");
+        let bad = |what: &str| err(path, format!("line {line}: {what}"));
         let frame: u64 = at(cf)
             .parse()
             .map_err(|_| bad(&format!("frame {:?} is not a whole number", at(cf))))?;

@@ -170,9 +170,25 @@ pub fn load(paths: &[PathBuf], skipped: &mut Vec<String>) -> Result<Vec<Collisio
     Ok(out)
 }
 
-/// The per-collision table as CSV (one row per experiment).
+/// The per-collision table as CSV (one row per experiment), quoted where a cell needs it (a
+/// source name with a comma).
 pub fn csv(collisions: &[Collision]) -> String {
-    let mut s = String::from("source,tube_angle_deg,e,e_sigma,psi1,psi1_sigma,psi2,psi2_sigma,beta,beta_sigma,class,outlier");
+    let mut header: Vec<String> = [
+        "source",
+        "tube_angle_deg",
+        "e",
+        "e_sigma",
+        "psi1",
+        "psi1_sigma",
+        "psi2",
+        "psi2_sigma",
+        "beta",
+        "beta_sigma",
+        "class",
+        "outlier",
+    ]
+    .map(String::from)
+    .to_vec();
     for sphere in ["a", "b"] {
         for q in [
             "velocity_pre_mm_s",
@@ -181,20 +197,21 @@ pub fn csv(collisions: &[Collision]) -> String {
             "spin_post_rad_s",
         ] {
             for c in ["x", "y", "z"] {
-                let _ = write!(s, ",{sphere}_{q}_{c},{sphere}_{q}_{c}_sigma");
+                header.push(format!("{sphere}_{q}_{c}"));
+                header.push(format!("{sphere}_{q}_{c}_sigma"));
             }
         }
     }
-    s.push('\n');
+    let mut w = csv::Writer::from_writer(Vec::new());
+    // Writing into memory cannot fail; a row that somehow did is left out, not half-written.
+    let _ = w.write_record(&header);
     let opt = |v: Option<f64>| v.map(|x| format!("{x}")).unwrap_or_default();
     for c in collisions {
-        let _ = write!(
-            s,
-            "{},{},{},{},{},{},{},{},{},{},{},{}",
-            c.source,
+        let mut row = vec![
+            c.source.clone(),
             opt(c.tube_angle_deg),
-            c.e,
-            c.e_sigma,
+            format!("{}", c.e),
+            format!("{}", c.e_sigma),
             opt(c.psi1),
             opt(c.psi1_sigma),
             opt(c.psi2),
@@ -202,8 +219,8 @@ pub fn csv(collisions: &[Collision]) -> String {
             opt(c.beta),
             opt(c.beta_sigma),
             c.class.clone().unwrap_or_default(),
-            c.outlier
-        );
+            c.outlier.to_string(),
+        ];
         for sp in [&c.report.spheres.a, &c.report.spheres.b] {
             for est in [
                 Some(&sp.velocity_pre_mm_s),
@@ -212,18 +229,14 @@ pub fn csv(collisions: &[Collision]) -> String {
                 sp.spin_post_rad_s.as_ref(),
             ] {
                 for i in 0..3 {
-                    let _ = write!(
-                        s,
-                        ",{},{}",
-                        opt(est.map(|e| e.value[i])),
-                        opt(est.map(|e| e.uncertainty[i]))
-                    );
+                    row.push(opt(est.map(|e| e.value[i])));
+                    row.push(opt(est.map(|e| e.uncertainty[i])));
                 }
             }
         }
-        s.push('\n');
+        let _ = w.write_record(&row);
     }
-    s
+    String::from_utf8(w.into_inner().unwrap_or_default()).unwrap_or_default()
 }
 
 fn est_text(name: &str, e: &Option<fit::FitEstimate>) -> String {

@@ -1,7 +1,7 @@
 //! Drawing for the campaign's plots, once for two outputs: SVG (vector, for editing) and PNG
 //! (raster, for slides and documents). A plot draws onto `Canvas`; it does not know which.
 
-use super::font::{GLYPHS, GLYPH_H, GLYPH_W};
+use super::font::{glyph, GLYPH_H, GLYPH_W};
 use std::fmt::Write as _;
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -174,20 +174,11 @@ impl Canvas for Raster {
         // `at` is the baseline, as in SVG; the glyph cell's baseline is about 3 px above its bottom.
         let top = at.1.round() as i64 - GLYPH_H as i64 + 3;
         for (k, ch) in text.chars().enumerate() {
-            let glyph = GLYPHS
-                .iter()
-                .find(|(c, _)| *c == ch)
-                .or_else(|| GLYPHS.iter().find(|(c, _)| *c == '?'));
-            let Some((_, data)) = glyph else { continue };
+            let Some(data) = glyph(ch) else { continue };
             let left = x_start.round() as i64 + (k * GLYPH_W) as i64;
             for gy in 0..GLYPH_H {
                 for gx in 0..GLYPH_W {
-                    let i = gy * GLYPH_W + gx;
-                    let nibble = if i.is_multiple_of(2) {
-                        data[i / 2] >> 4
-                    } else {
-                        data[i / 2] & 15
-                    };
+                    let nibble = data[gy * GLYPH_W + gx];
                     self.blend(
                         left + gx as i64,
                         top + gy as i64,
