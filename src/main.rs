@@ -3,9 +3,8 @@
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use impactcam::config::Config;
-use impactcam::experiment::{self, Event};
-use impactcam::recorder::Progress;
-use impactcam::summary::{bar, report_text, Status};
+use impactcam::experiment;
+use impactcam::summary::{progress_printer, report_text, Status};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -214,33 +213,6 @@ fn abort_flag() -> Arc<AtomicBool> {
     abort
 }
 
-fn progress_printer(status: &mut Status) -> impl FnMut(Event) + '_ {
-    move |ev| match ev {
-        Event::Recorder(Progress::Armed { frames_seen }) => status.line(&format!(
-            "armed: camera delivering frames ({frames_seen} seen)"
-        )),
-        Event::Recorder(Progress::Fired { session }) => status.line(&format!(
-            "fired: relay closed; recording into {}",
-            session.display()
-        )),
-        Event::Recorder(Progress::Frames { recorded, total }) => status.live(&format!(
-            "recording {}",
-            bar(recorded as usize, total as usize, 30)
-        )),
-        Event::Recorder(Progress::Finished { recorded, dropped }) => {
-            status.line(&format!("recorded {recorded} frames, {dropped} dropped"))
-        }
-        Event::Analysing {
-            frames_done,
-            frames_total,
-        } => {
-            if frames_done.is_multiple_of(10) || frames_done == frames_total {
-                status.live(&format!("analysing {}", bar(frames_done, frames_total, 30)))
-            }
-        }
-    }
-}
-
 fn main() {
     // The relay guard is this executable started by the trigger (see trigger::guard).
     if std::env::args_os()
@@ -400,75 +372,7 @@ fn real_main(cli: Cli) -> Result<i32> {
             json,
             out,
             overwrite,
-        } => {
-            let given = config.as_deref().map(Config::load).transpose()?;
-            let needs_config = || {
-                anyhow::anyhow!("--config: missing, expected the config that describes this footage (a session uses its own; a TIFF stack or --tracks needs one)")
-            };
-            let path = match (path, tracks) {
-                (Some(p), _) => p,
-                (None, Some(t)) => {
-                    let cfg = given.ok_or_else(needs_config)?;
-                    let report = impactcam::analysis::analyze_tracks(&t, &cfg)?;
-                    let out_dir = out.unwrap_or_else(|| {
-                        t.parent()
-                            .map(Path::to_path_buf)
-                            .unwrap_or_else(|| PathBuf::from("."))
-                    });
-                    std::fs::create_dir_all(&out_dir)
-                        .with_context(|| format!("{}: cannot create", out_dir.display()))?;
-                    let stem = t
-                        .file_stem()
-                        .map(|s| s.to_string_lossy().into_owned())
-                        .unwrap_or_default();
-                    let target = out_dir.join(format!("{stem}.report.json"));
-                    impactcam::session::write_atomic(
-                        &target,
-                        experiment::report_json(&report).as_bytes(),
-                    )?;
-                    if json {
-                        print!("{}", experiment::report_json(&report));
-                    } else {
-                        print!("{}", report_text(&report));
-                        println!("report      {}", target.display());
-                    }
-                    return Ok(0);
-                }
-                (None, None) => bail!("give a session, a TIFF stack, or --tracks FILE.csv"),
-            };
-            if path.is_dir() && out.is_none() && given.is_some() && !overwrite {
-                if path.join("report.json").exists() {
-                    bail!(
-                        "{}: the session's recorded report.json would be replaced by one from another --config; give --out DIR, or --overwrite to replace it",
-                        path.display()
-                    );
-                }
-            }
-            if !path.is_dir() && given.is_none() {
-                return Err(needs_config());
-            }
-            let report = experiment::analyze_path(&path, given.as_ref(), &mut |_, _| {})?;
-            let out_dir = match out {
-                Some(d) => d,
-                None if path.is_dir() => path.clone(),
-                None => path
-                    .parent()
-                    .map(Path::to_path_buf)
-                    .unwrap_or_else(|| PathBuf::from(".")),
-            };
-            std::fs::create_dir_all(&out_dir)
-                .with_context(|| format!("{}: cannot create", out_dir.display()))?;
-            let target = if path.is_dir() || out_dir != path.parent().unwrap_or(Path::new("")) {
-                out_dir.join("report.json")
-            } else {
-                let stem = path
-                    .file_stem()
-                    .map(|s| s.to_string_lossy().into_owned())
-                    .unwrap_or_default();
-                out_dir.join(format!("{stem}.report.json"))
-            };
-            deliver(&report, &target, json)
-        }
+        } => analyze_command(path, tracks, config, json, out, overwrite),
         Command::Serve { config, listen } => {
             let cfg = load_config(config.as_deref())?;
             let listen = listen.unwrap_or_else(|| cfg.daemon.listen.clone());
@@ -485,66 +389,8 @@ fn real_main(cli: Cli) -> Result<i32> {
             impact_offsets,
             repeats,
             dir,
-        } => {
-            let cfg = load_config(config.as_deref())?;
-            let angles = impactcam::campaign::parse_range(&tube_angles, "--tube-angles")
-                .map_err(anyhow::Error::msg)?;
-            let offsets = match &impact_offsets {
-                Some(t) => Some(
-                    impactcam::campaign::parse_range(t, "--impact-offsets")
-                        .map_err(anyhow::Error::msg)?,
-                ),
-                None => None,
-            };
-            if repeats == 0 {
-                bail!("--repeats: 0 is not allowed, expected 1 or more");
-            }
-            let dir = dir.unwrap_or_else(|| {
-                PathBuf::from("campaigns").join(impactcam::session::utc_stamp().0)
-            });
-            let abort = abort_flag();
-            let mut status = Status::new();
-            let (_, f) = impactcam::campaign::sweep(
-                &cfg,
-                &dir,
-                &angles,
-                offsets.as_deref(),
-                repeats,
-                abort,
-                &mut |m| status.line(m),
-            )?;
-            print!("{}", impactcam::campaign::fit_text(&f));
-            println!(
-                "campaign    {} (fit.json, collisions.csv, psi.svg, report.html)",
-                dir.display()
-            );
-            Ok(0)
-        }
-        Command::Fit { paths, json, out } => {
-            let mut skipped = Vec::new();
-            let mut collisions = impactcam::campaign::load(&paths, &mut skipped)?;
-            for s in &skipped {
-                Status::new().line(&format!("skipped: {s}"));
-            }
-            if collisions.is_empty() {
-                bail!("no collision with a measured e among the given reports");
-            }
-            let f = impactcam::campaign::fit::fit(&mut collisions);
-            if let Some(out) = out {
-                std::fs::create_dir_all(&out)
-                    .with_context(|| format!("{}: cannot create", out.display()))?;
-                impactcam::campaign::write_outputs(&out, &collisions, &f, "")?;
-            }
-            if json {
-                println!(
-                    "{}",
-                    serde_json::to_string_pretty(&impactcam::campaign::fit_json(&f))?
-                );
-            } else {
-                print!("{}", impactcam::campaign::fit_text(&f));
-            }
-            Ok(0)
-        }
+        } => sweep_command(config, tube_angles, impact_offsets, repeats, dir),
+        Command::Fit { paths, json, out } => fit_command(paths, json, out),
         Command::Export { session, tiff } => {
             let mut reader = impactcam::session::SessionReader::open(&session)?;
             let n = impactcam::session::tiff::export_session(&mut reader, &tiff)?;
@@ -625,4 +471,148 @@ fn real_main(cli: Cli) -> Result<i32> {
             }
         },
     }
+}
+
+/// `impactcam analyze`: a session, a TIFF stack or a tracks CSV; the report beside the input
+/// or in `--out`.
+fn analyze_command(
+    path: Option<PathBuf>,
+    tracks: Option<PathBuf>,
+    config: Option<PathBuf>,
+    json: bool,
+    out: Option<PathBuf>,
+    overwrite: bool,
+) -> Result<i32> {
+    let given = config.as_deref().map(Config::load).transpose()?;
+    let needs_config = || {
+        anyhow::anyhow!("--config: missing, expected the config that describes this footage (a session uses its own; a TIFF stack or --tracks needs one)")
+    };
+    let path = match (path, tracks) {
+        (Some(p), _) => p,
+        (None, Some(t)) => {
+            let cfg = given.ok_or_else(needs_config)?;
+            let report = impactcam::analysis::analyze_tracks(&t, &cfg)?;
+            let out_dir = out.unwrap_or_else(|| {
+                t.parent()
+                    .map(Path::to_path_buf)
+                    .unwrap_or_else(|| PathBuf::from("."))
+            });
+            std::fs::create_dir_all(&out_dir)
+                .with_context(|| format!("{}: cannot create", out_dir.display()))?;
+            let stem = t
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let target = out_dir.join(format!("{stem}.report.json"));
+            impactcam::session::write_atomic(&target, experiment::report_json(&report).as_bytes())?;
+            if json {
+                print!("{}", experiment::report_json(&report));
+            } else {
+                print!("{}", report_text(&report));
+                println!("report      {}", target.display());
+            }
+            return Ok(0);
+        }
+        (None, None) => bail!("give a session, a TIFF stack, or --tracks FILE.csv"),
+    };
+    if path.is_dir() && out.is_none() && given.is_some() && !overwrite {
+        if path.join("report.json").exists() {
+            bail!(
+                    "{}: the session's recorded report.json would be replaced by one from another --config; give --out DIR, or --overwrite to replace it",
+                    path.display()
+                );
+        }
+    }
+    if !path.is_dir() && given.is_none() {
+        return Err(needs_config());
+    }
+    let report = experiment::analyze_path(&path, given.as_ref(), &mut |_, _| {})?;
+    let out_dir = match out {
+        Some(d) => d,
+        None if path.is_dir() => path.clone(),
+        None => path
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| PathBuf::from(".")),
+    };
+    std::fs::create_dir_all(&out_dir)
+        .with_context(|| format!("{}: cannot create", out_dir.display()))?;
+    let target = if path.is_dir() || out_dir != path.parent().unwrap_or(Path::new("")) {
+        out_dir.join("report.json")
+    } else {
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        out_dir.join(format!("{stem}.report.json"))
+    };
+    deliver(&report, &target, json)
+}
+
+/// `impactcam sweep`: a campaign of experiments, then its fit.
+fn sweep_command(
+    config: Option<PathBuf>,
+    tube_angles: String,
+    impact_offsets: Option<String>,
+    repeats: u32,
+    dir: Option<PathBuf>,
+) -> Result<i32> {
+    let cfg = load_config(config.as_deref())?;
+    let angles = impactcam::campaign::parse_range(&tube_angles, "--tube-angles")
+        .map_err(anyhow::Error::msg)?;
+    let offsets = match &impact_offsets {
+        Some(t) => Some(
+            impactcam::campaign::parse_range(t, "--impact-offsets").map_err(anyhow::Error::msg)?,
+        ),
+        None => None,
+    };
+    if repeats == 0 {
+        bail!("--repeats: 0 is not allowed, expected 1 or more");
+    }
+    let dir =
+        dir.unwrap_or_else(|| PathBuf::from("campaigns").join(impactcam::session::utc_stamp().0));
+    let abort = abort_flag();
+    let mut status = Status::new();
+    let (_, f) = impactcam::campaign::sweep(
+        &cfg,
+        &dir,
+        &angles,
+        offsets.as_deref(),
+        repeats,
+        abort,
+        &mut |m| status.line(m),
+    )?;
+    print!("{}", impactcam::campaign::fit_text(&f));
+    println!(
+        "campaign    {} (fit.json, collisions.csv, psi.svg, report.html)",
+        dir.display()
+    );
+    Ok(0)
+}
+
+/// `impactcam fit`: e, μ, β0 over many reports.
+fn fit_command(paths: Vec<PathBuf>, json: bool, out: Option<PathBuf>) -> Result<i32> {
+    let mut skipped = Vec::new();
+    let mut collisions = impactcam::campaign::load(&paths, &mut skipped)?;
+    for s in &skipped {
+        Status::new().line(&format!("skipped: {s}"));
+    }
+    if collisions.is_empty() {
+        bail!("no collision with a measured e among the given reports");
+    }
+    let f = impactcam::campaign::fit::fit(&mut collisions);
+    if let Some(out) = out {
+        std::fs::create_dir_all(&out)
+            .with_context(|| format!("{}: cannot create", out.display()))?;
+        impactcam::campaign::write_outputs(&out, &collisions, &f, "")?;
+    }
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&impactcam::campaign::fit_json(&f))?
+        );
+    } else {
+        print!("{}", impactcam::campaign::fit_text(&f));
+    }
+    Ok(0)
 }

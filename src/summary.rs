@@ -158,3 +158,39 @@ pub fn bar(done: usize, total: usize, width: usize) -> String {
         "-".repeat(width - filled)
     )
 }
+
+/// Prints an experiment's progress: stage lines that stay, and a live bar while recording and
+/// analysing.
+pub fn progress_printer(status: &mut Status) -> impl FnMut(crate::experiment::Event) + '_ {
+    move |ev| match ev {
+        crate::experiment::Event::Recorder(crate::recorder::Progress::Armed { frames_seen }) => {
+            status.line(&format!(
+                "armed: camera delivering frames ({frames_seen} seen)"
+            ))
+        }
+        crate::experiment::Event::Recorder(crate::recorder::Progress::Fired { session }) => status
+            .line(&format!(
+                "fired: relay closed; recording into {}",
+                session.display()
+            )),
+        crate::experiment::Event::Recorder(crate::recorder::Progress::Frames {
+            recorded,
+            total,
+        }) => status.live(&format!(
+            "recording {}",
+            bar(recorded as usize, total as usize, 30)
+        )),
+        crate::experiment::Event::Recorder(crate::recorder::Progress::Finished {
+            recorded,
+            dropped,
+        }) => status.line(&format!("recorded {recorded} frames, {dropped} dropped")),
+        crate::experiment::Event::Analysing {
+            frames_done,
+            frames_total,
+        } => {
+            if frames_done.is_multiple_of(10) || frames_done == frames_total {
+                status.live(&format!("analysing {}", bar(frames_done, frames_total, 30)))
+            }
+        }
+    }
+}

@@ -10,15 +10,15 @@
 
 pub mod guard;
 mod listen;
+mod views;
 
 use crate::config::Config;
 use crate::experiment::{self, Event as ExpEvent, ExperimentError, Rig};
 use crate::recorder::Progress;
 use axum::body::Bytes;
-use axum::extract::{DefaultBodyLimit, Path, Request, State};
+use axum::extract::{DefaultBodyLimit, Request, State};
 use axum::http::{Method, StatusCode};
 use axum::middleware::Next;
-use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
@@ -29,8 +29,6 @@ use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use tokio::sync::broadcast;
-use tokio_stream::wrappers::BroadcastStream;
-use tokio_stream::StreamExt;
 
 const PAGE: &str = include_str!("page.html");
 /// Shown at `/` to a browser without the token: a form that posts it to `/api/login`.
@@ -178,12 +176,12 @@ pub fn serve(
         });
         let app = Router::new()
             .route("/", get(|| async { Html(PAGE) }))
-            .route("/api/status", get(status))
-            .route("/api/experiments", post(start).get(list))
-            .route("/api/experiments/{id}", get(one))
-            .route("/api/experiments/{id}/events", get(events_sse))
-            .route("/api/experiments/{id}/trajectory.svg", get(trajectory))
-            .route("/api/experiments/{id}/impact.png", get(impact_frame))
+            .route("/api/status", get(views::status))
+            .route("/api/experiments", post(start).get(views::list))
+            .route("/api/experiments/{id}", get(views::one))
+            .route("/api/experiments/{id}/events", get(views::events_sse))
+            .route("/api/experiments/{id}/trajectory.svg", get(views::trajectory))
+            .route("/api/experiments/{id}/impact.png", get(views::impact_frame))
             .route("/api/login", post(login))
             .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
             .layer(axum::middleware::from_fn_with_state(state.clone(), refuse_forged))
@@ -509,173 +507,4 @@ pub fn experiment_config(body: &[u8], base: &Config) -> Result<(Config, Override
     }
     cfg.validate()?;
     Ok((cfg, overrides))
-}
-
-fn record_json(id: &str, r: &Record) -> Value {
-    let mut v = json!({"id": id, "status": r.status, "session": r.session, "notes": r.notes});
-    if let Some(e) = &r.error {
-        v["error"] = json!(e);
-    }
-    v
-}
-
-/// The report of a finished experiment, from its session on disk.
-fn report_of(state: &AppState, r: &Record) -> Option<Value> {
-    if r.status != "done" {
-        return None;
-    }
-    let path = state
-        .cfg
-        .recording
-        .dir
-        .join(r.session.as_ref()?)
-        .join("report.json");
-    serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()
-}
-
-async fn one(State(state): State<Shared>, Path(id): Path<String>) -> Response {
-    let found = lock(&state.experiments)
-        .get(&key(&id))
-        .map(|r| (record_json(&id, r), report_of(&state, r)));
-    match found {
-        Some((mut v, report)) => {
-            if let Some(rep) = report {
-                v["report"] = rep;
-            }
-            Json(v).into_response()
-        }
-        None => error(StatusCode::NOT_FOUND, format!("no experiment {id}")),
-    }
-}
-
-async fn list(State(state): State<Shared>) -> Response {
-    let all: Vec<Value> = lock(&state.experiments)
-        .iter()
-        .map(|((_, id), r)| record_json(id, r))
-        .collect();
-    Json(json!({ "experiments": all })).into_response()
-}
-
-async fn status(State(state): State<Shared>) -> Response {
-    let running = lock(&state.running)
-        .as_ref()
-        .filter(|(_, h)| !h.is_finished())
-        .map(|(id, _)| id.clone());
-    let c = &state.cfg;
-    let (rig_state, opened_times, rig_error) = {
-        let h = lock(&state.rig_health);
-        (
-            if h.open { "open" } else { "closed" },
-            h.opened_times,
-            h.error.clone(),
-        )
-    };
-    let disk = match crate::session::disk::disk_space(&c.recording.dir) {
-        Ok((free, total)) => json!({"free_bytes": free, "total_bytes": total}),
-        Err(e) => json!({"error": e}),
-    };
-    Json(json!({
-        "camera": {"backend": c.camera.backend, "device": c.camera.device, "width": c.camera.width, "height": c.camera.height, "frame_rate_hz": c.camera.frame_rate_hz, "state": rig_state, "opened_times": opened_times, "error": rig_error},
-        "trigger": {"backend": c.trigger.backend, "port": c.trigger.port, "state": rig_state, "error": rig_error},
-        "sessions_dir": c.recording.dir,
-        "disk": disk,
-        "running": running,
-        "last_error": *lock(&state.last_error),
-    }))
-    .into_response()
-}
-
-async fn events_sse(State(state): State<Shared>, Path(id): Path<String>) -> Response {
-    // Subscribe before copying the history, so nothing falls between the two.
-    let live = BroadcastStream::new(state.events.subscribe());
-    let past: Vec<String> = match lock(&state.experiments).get(&key(&id)) {
-        Some(r) => r.events.iter().map(|(_, text)| text.clone()).collect(),
-        None => return error(StatusCode::NOT_FOUND, format!("no experiment {id}")),
-    };
-    let want = id.clone();
-    let history = tokio_stream::iter(
-        past.into_iter()
-            .map(|text| Ok::<_, std::convert::Infallible>(Event::default().data(text))),
-    );
-    let updates = live.filter_map(move |m| match m {
-        Ok((eid, text)) if *eid == *want => Some(Ok(Event::default().data(&*text))),
-        _ => None,
-    });
-    Sse::new(history.chain(updates))
-        .keep_alive(KeepAlive::default())
-        .into_response()
-}
-
-async fn trajectory(State(state): State<Shared>, Path(id): Path<String>) -> Response {
-    let report = lock(&state.experiments)
-        .get(&key(&id))
-        .and_then(|r| report_of(&state, r));
-    let Some(report) =
-        report.and_then(|v| serde_json::from_value::<crate::analysis::report::Report>(v).ok())
-    else {
-        return error(
-            StatusCode::NOT_FOUND,
-            format!("experiment {id} has no report"),
-        );
-    };
-    let (svg, _) =
-        crate::figures::trajectory::trajectory_plot(&report, state.cfg.analysis.gravity_mm_s2);
-    ([("content-type", "image/svg+xml")], svg).into_response()
-}
-
-/// The recorded frame nearest the impact, with the detected circles drawn (a blue, b red).
-async fn impact_frame(State(state): State<Shared>, Path(id): Path<String>) -> Response {
-    let found = lock(&state.experiments)
-        .get(&key(&id))
-        .and_then(|r| Some((report_of(&state, r)?, r.session.clone()?)));
-    let Some((report, session)) = found else {
-        return error(
-            StatusCode::NOT_FOUND,
-            format!("experiment {id} has no report"),
-        );
-    };
-    let dir = state.cfg.recording.dir.join(session);
-    let png = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
-        use crate::figures::canvas::{Canvas, Raster};
-        let report: crate::analysis::report::Report =
-            serde_json::from_value(report).map_err(|e| e.to_string())?;
-        let mut reader = crate::session::SessionReader::open(&dir).map_err(|e| e.to_string())?;
-        let k = report.impact.frame as usize;
-        let mut raw = Vec::new();
-        reader.read_frame(k, &mut raw).map_err(|e| e.to_string())?;
-        let mut img = crate::analysis::image::GreyImage::new();
-        img.load(
-            &raw,
-            reader.width as usize,
-            reader.height as usize,
-            reader.bytes_per_pixel,
-        );
-        let mut r = Raster::from_grey(img.width, img.height, &img.data);
-        // Circles from the frames around the impact, so both spheres show even when merged.
-        for t in report
-            .tracks
-            .iter()
-            .filter(|t| (t.frame as i64 - k as i64).abs() <= 3)
-        {
-            for (track, colour) in [(&t.a, [31u8, 119, 180]), (&t.b, [214, 39, 40])] {
-                for v in track.iter().flat_map(|s| [&s.direct, &s.mirror]).flatten() {
-                    if t.frame as usize == k || v.diameter_px.is_finite() {
-                        r.circle(
-                            (v.centre_px[0] + 0.5, v.centre_px[1] + 0.5),
-                            v.diameter_px / 2.0,
-                            colour,
-                            false,
-                        );
-                    }
-                }
-            }
-        }
-        r.png().map_err(|e| e.to_string())
-    })
-    .await;
-    match png {
-        Ok(Ok(bytes)) => ([("content-type", "image/png")], bytes).into_response(),
-        Ok(Err(e)) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
-        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
-    }
 }

@@ -1,0 +1,208 @@
+//! Config validation: every key's range and the relations between keys, checked before
+//! anything is opened. Each error names the key and what was expected; every size a recording
+//! allocates by is bounded here.
+
+use super::*;
+
+impl Config {
+    /// Range and consistency checks; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        let c = &self.camera;
+        let pos = |key: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!(
+                    "{key}: {v} is not allowed, expected a positive number"
+                ))
+            }
+        };
+        pos("camera.frame_rate_hz", c.frame_rate_hz)?;
+        if c.frame_rate_hz > 1.0e6 {
+            return Err(format!(
+                "camera.frame_rate_hz: {} is out of range, expected at most 1000000",
+                c.frame_rate_hz
+            ));
+        }
+        if c.width == 0 || c.height == 0 || c.width > 16384 || c.height > 16384 {
+            return Err(format!(
+                "camera.width/height: {}×{} is out of range, expected 1 to 16384 px each",
+                c.width, c.height
+            ));
+        }
+        if let Some(e) = c.exposure_us {
+            pos("camera.exposure_us", e)?;
+        }
+        if c.trigger_mode != CameraTrigger::FreeRun && c.backend != CameraBackend::Aravis {
+            return Err(format!(
+                "camera.trigger_mode: {:?} needs backend = \"aravis\"; other backends run free",
+                c.trigger_mode
+            ));
+        }
+        let t = &self.trigger;
+        pos("trigger.relay_pulse_ms", t.relay_pulse_ms)?;
+        pos("trigger.relay_pulse_ms_max", t.relay_pulse_ms_max)?;
+        if t.relay_pulse_ms > t.relay_pulse_ms_max {
+            return Err(format!(
+                "trigger.relay_pulse_ms: {} exceeds trigger.relay_pulse_ms_max = {}",
+                t.relay_pulse_ms, t.relay_pulse_ms_max
+            ));
+        }
+        if t.relay_pulse_ms_max > 10_000.0 {
+            return Err(format!(
+                "trigger.relay_pulse_ms_max: {} is out of range, expected at most 10000",
+                t.relay_pulse_ms_max
+            ));
+        }
+        if t.backend == TriggerBackend::Serial && t.port.is_empty() {
+            return Err("trigger.port: missing, expected the relay module's serial device (e.g. \"/dev/ttyUSB0\") for backend = \"serial\"".into());
+        }
+        if t.channel == 0 && t.protocol == RelayProtocol::Lcus {
+            return Err(
+                "trigger.channel: 0 is not allowed for protocol = \"lcus\", expected 1 or more"
+                    .into(),
+            );
+        }
+        if t.protocol == RelayProtocol::Generic {
+            for (key, v) in [
+                ("generic_on_hex", &t.generic_on_hex),
+                ("generic_off_hex", &t.generic_off_hex),
+            ] {
+                if v.as_deref()
+                    .and_then(parse_hex)
+                    .is_none_or(|b| b.is_empty())
+                {
+                    return Err(format!("trigger.{key}: missing or not hex bytes, expected e.g. \"A0 01 01 A2\" for protocol = \"generic\""));
+                }
+            }
+        }
+        if let Some(r) = &t.generic_reply_hex {
+            if parse_hex(r).is_none() {
+                return Err(format!("trigger.generic_reply_hex: {r:?} is not hex bytes"));
+            }
+        }
+        let r = &self.recording;
+        if r.frames < 2 {
+            return Err(format!(
+                "recording.frames: {} is too few, expected at least 2",
+                r.frames
+            ));
+        }
+        if r.frames > MAX_FRAMES {
+            return Err(format!(
+                "recording.frames: {} is out of range, expected at most {MAX_FRAMES}",
+                r.frames
+            ));
+        }
+        if r.pre_trigger_frames >= r.frames {
+            return Err(format!(
+                "recording.pre_trigger_frames: {} must be less than recording.frames = {}",
+                r.pre_trigger_frames, r.frames
+            ));
+        }
+        if r.ram_buffer_mb == 0 || r.ram_buffer_mb > MAX_RAM_BUFFER_MB {
+            return Err(format!(
+                "recording.ram_buffer_mb: {} is out of range, expected 1 to {MAX_RAM_BUFFER_MB} MiB",
+                r.ram_buffer_mb
+            ));
+        }
+        // The pre-trigger ring holds whole frames in memory, inside the RAM buffer.
+        let frame_bytes =
+            u64::from(c.width) * u64::from(c.height) * c.pixel_format.bytes_per_pixel() as u64;
+        let ring_bytes = u64::from(r.pre_trigger_frames) * frame_bytes;
+        if ring_bytes > u64::from(r.ram_buffer_mb) << 20 {
+            return Err(format!(
+                "recording.pre_trigger_frames: {} frames of {}×{} take {} MiB, more than recording.ram_buffer_mb = {}",
+                r.pre_trigger_frames,
+                c.width,
+                c.height,
+                ring_bytes.div_ceil(1 << 20),
+                r.ram_buffer_mb
+            ));
+        }
+        if r.arm_timeout_ms > MAX_ARM_TIMEOUT_MS {
+            return Err(format!(
+                "recording.arm_timeout_ms: {} is out of range, expected at most {MAX_ARM_TIMEOUT_MS}",
+                r.arm_timeout_ms
+            ));
+        }
+        if self.geometry.direct.is_none() && self.geometry.mirror.is_none() {
+            return Err(
+                "geometry: no view given, expected [geometry.direct] and/or [geometry.mirror]"
+                    .into(),
+            );
+        }
+        for (name, view, plane) in [
+            ("direct", &self.geometry.direct, 'y'),
+            ("mirror", &self.geometry.mirror, 'z'),
+        ] {
+            let Some(v) = view else { continue };
+            let key = format!("geometry.{name}");
+            pos(&format!("{key}.px_per_mm"), v.px_per_mm)?;
+            let [u0, v0, w, h] = v.region;
+            let (u_end, v_end) = (u64::from(u0) + u64::from(w), u64::from(v0) + u64::from(h));
+            if w == 0 || h == 0 || u_end > u64::from(c.width) || v_end > u64::from(c.height) {
+                return Err(format!(
+                    "{key}.region: {:?} does not fit in the {}×{} frame, expected [u, v, width, height] inside it",
+                    v.region, c.width, c.height
+                ));
+            }
+            if !v.origin_px.iter().all(|x| x.is_finite()) {
+                return Err(format!("{key}.origin_px: expected two finite numbers"));
+            }
+            let ua = parse_axis(&v.u_axis).ok_or_else(|| {
+                format!(
+                    "{key}.u_axis: {:?} is not an axis, expected one of +x -x +y -y +z -z",
+                    v.u_axis
+                )
+            })?;
+            let va = parse_axis(&v.v_axis).ok_or_else(|| {
+                format!(
+                    "{key}.v_axis: {:?} is not an axis, expected one of +x -x +y -y +z -z",
+                    v.v_axis
+                )
+            })?;
+            let uses = |a: [f64; 3], axis: char| match axis {
+                'x' => a[0] != 0.0,
+                'y' => a[1] != 0.0,
+                _ => a[2] != 0.0,
+            };
+            if !(uses(ua, 'x') || uses(ua, plane))
+                || !(uses(va, 'x') || uses(va, plane))
+                || ua == va
+                || ua.iter().zip(va.iter()).all(|(a, b)| a.abs() == b.abs())
+            {
+                return Err(format!(
+                    "{key}: u_axis {:?} and v_axis {:?} must be the two different axes of the world x–{plane} plane this view sees",
+                    v.u_axis, v.v_axis
+                ));
+            }
+        }
+        for i in 0..2 {
+            let (d, m) = self.spheres.sphere(i);
+            let which = if i == 0 { "a" } else { "b" };
+            pos(&format!("spheres.{which}.diameter_mm"), d)?;
+            pos(&format!("spheres.{which}.mass_g"), m)?;
+        }
+        let a = &self.analysis;
+        if a.min_frames_per_side < 2 {
+            return Err(format!(
+                "analysis.min_frames_per_side: {} is too few, expected at least 2",
+                a.min_frames_per_side
+            ));
+        }
+        pos("analysis.gravity_mm_s2", a.gravity_mm_s2)?;
+        pos("analysis.marker_diameter_mm", a.marker_diameter_mm)?;
+        if !(a.threshold_fraction > 0.05 && a.threshold_fraction < 0.95) {
+            return Err(format!(
+                "analysis.threshold_fraction: {} is out of range, expected 0.05 to 0.95",
+                a.threshold_fraction
+            ));
+        }
+        if let Some(t) = &self.daemon.token {
+            check_token(t).map_err(|e| format!("daemon.token: {e}"))?;
+        }
+        self.sim.validate()?;
+        Ok(())
+    }
+}
