@@ -258,6 +258,7 @@ fn main() {
         LogFormat::Json => {
             logs.json().flatten_event(true).init();
             impactcam::summary::set_json_progress(true);
+            impactcam::trigger::guard::set_json_logs(true);
         }
     }
     match real_main(cli) {
@@ -515,13 +516,16 @@ fn analyze_command(
         }
         (None, None) => bail!("give a session, a TIFF stack, or --tracks FILE.csv"),
     };
-    if path.is_dir() && out.is_none() && given.is_some() && !overwrite {
-        if path.join("report.json").exists() {
-            bail!(
-                    "{}: the session's recorded report.json would be replaced by one from another --config; give --out DIR, or --overwrite to replace it",
-                    path.display()
-                );
-        }
+    if path.is_dir()
+        && out.is_none()
+        && given.is_some()
+        && !overwrite
+        && path.join("report.json").exists()
+    {
+        bail!(
+            "{}: the session's recorded report.json would be replaced by one from another --config; give --out DIR, or --overwrite to replace it",
+            path.display()
+        );
     }
     if !path.is_dir() && given.is_none() {
         return Err(needs_config());

@@ -101,11 +101,6 @@ pub fn set_json_progress(on: bool) {
     JSON_PROGRESS.store(on, std::sync::atomic::Ordering::Relaxed);
 }
 
-/// Whether `--log-format json` is in force.
-pub fn json_progress() -> bool {
-    JSON_PROGRESS.load(std::sync::atomic::Ordering::Relaxed)
-}
-
 impl Status {
     pub fn new() -> Status {
         use std::io::IsTerminal;

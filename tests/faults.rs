@@ -209,33 +209,34 @@ fn while_recording(fault: &'static str, sig: Option<&str>, recording: &str) -> R
 
 #[test]
 fn fault_matrix() {
-    let mut rows = Vec::new();
     // Before firing.
-    rows.push(before_firing(
-        "bad config (frames 2^32-1)",
-        "frames = 4294967295",
-        "",
-        None,
-    ));
-    rows.push(before_firing("unusable dir (a file)", "", "", None));
-    rows.push(before_firing(
-        "disk too small",
-        "pre_trigger_frames = 1\nframes = 1000000\n[camera]\nwidth = 2048\nheight = 2048",
-        "",
-        None,
-    ));
-    rows.push(before_firing(
-        "relay port gone",
-        "",
-        "",
-        Some("/dev/impactcam-no-such-port"),
-    ));
-    rows.push(before_firing(
-        "pulse above its maximum",
-        "",
-        "relay_pulse_ms = 900.0\nrelay_pulse_ms_max = 500.0",
-        None,
-    ));
+    let mut rows = vec![
+        before_firing(
+            "bad config (frames 2^32-1)",
+            "frames = 4294967295",
+            "",
+            None,
+        ),
+        before_firing("unusable dir (a file)", "", "", None),
+        before_firing(
+            "disk too small",
+            "pre_trigger_frames = 1\nframes = 1000000\n[camera]\nwidth = 2048\nheight = 2048",
+            "",
+            None,
+        ),
+        before_firing(
+            "relay port gone",
+            "",
+            "",
+            Some("/dev/impactcam-no-such-port"),
+        ),
+        before_firing(
+            "pulse above its maximum",
+            "",
+            "relay_pulse_ms = 900.0\nrelay_pulse_ms_max = 500.0",
+            None,
+        ),
+    ];
     for r in &rows {
         assert!(!r.fired, "{}: the relay closed", r.fault);
         assert_eq!(r.exit, "1", "{}", r.fault);

@@ -419,7 +419,7 @@ pub fn parse_range(text: &str, what: &str) -> Result<Vec<f64>, String> {
                 ));
             }
             let steps = ((b - a) / step + 1e-9).floor();
-            if !(steps < MAX_RANGE_VALUES as f64) {
+            if steps.is_nan() || steps >= MAX_RANGE_VALUES as f64 {
                 return Err(format!(
                     "{what}: {text:?} gives {steps:.0} values, expected at most {MAX_RANGE_VALUES}"
                 ));

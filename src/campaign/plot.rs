@@ -69,8 +69,7 @@ pub fn draw_psi(c: &mut dyn Canvas, collisions: &[Collision], f: &CampaignFit) {
     }
 }
 
-/// Measured centres (mm) of sphere s per frame: (time s, [x, y, z]).
-
+/// The ψ2–ψ1 figure as (SVG text, PNG bytes).
 pub fn psi_plot(collisions: &[Collision], f: &CampaignFit) -> (String, Vec<u8>) {
     render(640, 470, &|c| draw_psi(c, collisions, f))
 }

@@ -5,6 +5,7 @@ use super::canvas::{Anchor, Canvas, Rgb};
 use super::{range, render, Frame, BLACK, BLUE, RED};
 use crate::analysis::report::Report;
 
+/// Measured centres (mm) of sphere s per frame: (time s, [x, y, z]).
 fn centres(r: &Report, s: usize) -> Vec<(f64, [Option<f64>; 3])> {
     r.tracks
         .iter()

@@ -200,9 +200,8 @@ fn write_stack(session: &mut SessionReader, out: &Path) -> Result<usize, Session
         };
         r.map_err(|e| fmt_err(out, format!("frame {i}: {e}")))?;
     }
-    // The encoder's BufWriter is flushed when it is dropped, silently: flush and sync here so
-    // that a full disk is an error, not a short file.
-    drop(enc);
+    // The encoder's borrow of the writer ends here. Flush and sync, so that a full disk is an
+    // error, not a short file (a BufWriter's drop flushes silently).
     let file = writer
         .into_inner()
         .map_err(|e| fmt_err(out, e.error().to_string()))?;

@@ -31,6 +31,12 @@ pub const GUARD_ARG: &str = "__relay-guard";
 const ANSWER_TIMEOUT: Duration = Duration::from_secs(3);
 
 static EXECUTABLE: OnceLock<PathBuf> = OnceLock::new();
+static JSON_LOGS: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Makes the guard's own messages JSON lines, as the main process logs (`--log-format json`).
+pub fn set_json_logs(on: bool) {
+    JSON_LOGS.store(on, std::sync::atomic::Ordering::Relaxed);
+}
 
 /// Names the executable that runs `guard_main` when started with `GUARD_ARG`.
 pub fn set_executable(path: PathBuf) {
@@ -94,7 +100,7 @@ impl GuardedRelay {
             trigger: trigger.clone(),
             port: port.into(),
             backend: backend.into(),
-            json_logs: crate::summary::json_progress(),
+            json_logs: JSON_LOGS.load(std::sync::atomic::Ordering::Relaxed),
         };
         let line = serde_json::to_string(&spec).map_err(|e| fail(e.to_string()))?;
         let mut relay = GuardedRelay {

@@ -1,0 +1,211 @@
+//! Which sphere is a and which b in a view: by the x the primary view measured, by continuity
+//! with the last frames, by position, and inside a split silhouette; and each view's memory of
+//! where a and b were.
+
+use super::world_x;
+use crate::analysis::circle::CircleFit;
+use crate::analysis::detect::Blob;
+use crate::analysis::geometry::View;
+
+/// Labels the circles found in one silhouette holding both spheres: by the positions this view
+/// predicts from its own last frames, when those tell them apart by more than half a radius;
+/// else by world x against the x the primary view measured for a and b, when that tells them
+/// apart by more than 0.3 mm (fifteen times the x error of either). Otherwise neither.
+pub(super) fn label_split<'a>(
+    fits: &'a [CircleFit],
+    view: &View,
+    x: [Option<f64>; 2],
+    predicted: [Option<[f64; 2]>; 2],
+    radius_px: f64,
+) -> [Option<&'a CircleFit>; 2] {
+    const X_MARGIN_MM: f64 = 0.3;
+    let by_x = |f: &CircleFit, s: usize| x[s].map(|xs| (world_x(view, f.centre) - xs).abs());
+    let by_px = |f: &CircleFit, s: usize| {
+        predicted[s].map(|p| (f.centre[0] - p[0]).hypot(f.centre[1] - p[1]))
+    };
+    let decide =
+        |straight: Option<f64>, swapped: Option<f64>, margin: f64| match (straight, swapped) {
+            (Some(a), Some(b)) if (a - b).abs() > margin => Some(a < b),
+            _ => None,
+        };
+    match fits {
+        [p, q] => {
+            let sum = |c: &dyn Fn(&CircleFit, usize) -> Option<f64>,
+                       f0: &CircleFit,
+                       f1: &CircleFit| { Some(c(f0, 0)? + c(f1, 1)?) };
+            let straight_first = decide(sum(&by_px, p, q), sum(&by_px, q, p), 0.5 * radius_px)
+                .or_else(|| decide(sum(&by_x, p, q), sum(&by_x, q, p), X_MARGIN_MM));
+            match straight_first {
+                Some(true) => [Some(p), Some(q)],
+                Some(false) => [Some(q), Some(p)],
+                None => [None, None],
+            }
+        }
+        [p] => {
+            let is_a = decide(by_px(p, 0), by_px(p, 1), 0.5 * radius_px)
+                .or_else(|| decide(by_x(p, 0), by_x(p, 1), X_MARGIN_MM));
+            match is_a {
+                Some(true) => [Some(p), None],
+                Some(false) => [None, Some(p)],
+                None => [None, None],
+            }
+        }
+        _ => [None, None],
+    }
+}
+
+/// x at time t on the line through the last (up to) three points, if the last is recent.
+pub(super) fn extrapolate(history: &[(f64, f64)], t: f64, max_gap_s: f64) -> Option<f64> {
+    let recent = &history[history.len().saturating_sub(3)..];
+    let &(t_last, x_last) = recent.last()?;
+    if t - t_last > max_gap_s {
+        return None;
+    }
+    if recent.len() < 2 {
+        return Some(x_last);
+    }
+    let n = recent.len() as f64;
+    let (mt, mx) = (
+        recent.iter().map(|p| p.0).sum::<f64>() / n,
+        recent.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let (sxy, sxx) = recent.iter().fold((0.0, 0.0), |a, p| {
+        (a.0 + (p.0 - mt) * (p.1 - mx), a.1 + (p.0 - mt).powi(2))
+    });
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    Some(mx + slope * (t - mt))
+}
+
+/// Labels blobs of a secondary view by matching their world x to where the primary view
+/// measured a and/or b in the same frame (a sphere the primary view did not measure is "the
+/// other one").
+pub(super) fn assign_by_x<'a>(
+    blobs: &'a [Blob],
+    view: &View,
+    x: [Option<f64>; 2],
+    contact_mm: f64,
+) -> [Option<&'a Blob>; 2] {
+    let mut sorted: Vec<&Blob> = blobs.iter().filter(|b| !b.merged).collect();
+    sorted.sort_by_key(|b| std::cmp::Reverse(b.area_px));
+    sorted.truncate(2);
+    // Distance of a blob from a sphere's primary x; a sphere not measured there matches nothing.
+    let cost = |b: &Blob, s: usize| x[s].map(|xs| (world_x(view, b.centroid) - xs).abs());
+    match sorted.as_slice() {
+        [p, q] => {
+            let straight = cost(p, 0).unwrap_or(0.0) + cost(q, 1).unwrap_or(0.0);
+            let swapped = cost(q, 0).unwrap_or(0.0) + cost(p, 1).unwrap_or(0.0);
+            if straight <= swapped {
+                [Some(p), Some(q)]
+            } else {
+                [Some(q), Some(p)]
+            }
+        }
+        [p] => match (cost(p, 0), cost(p, 1)) {
+            (Some(da), Some(db)) if da <= db => [Some(p), None],
+            (Some(_), Some(_)) => [None, Some(p)],
+            (Some(da), None) if da < contact_mm => [Some(p), None],
+            (None, Some(db)) if db < contact_mm => [None, Some(p)],
+            _ => [None, None],
+        },
+        _ => [None, None],
+    }
+}
+
+/// Labels two blobs by least total movement from the previous frame, where both were measured:
+/// a sphere moves a few pixels per frame, far less than the diameter that separates the two.
+pub(super) fn assign_by_continuity<'a>(
+    blobs: &'a [Blob],
+    memory: &ViewMemory,
+) -> [Option<&'a Blob>; 2] {
+    let (p, q) = (&blobs[0], &blobs[1]);
+    let d = |b: &Blob, s: usize| {
+        memory.last[s]
+            .map(|c| (c[0] - b.centroid[0]).hypot(c[1] - b.centroid[1]))
+            .unwrap_or(0.0)
+    };
+    if d(p, 0) + d(q, 1) <= d(q, 0) + d(p, 1) {
+        [Some(p), Some(q)]
+    } else {
+        [Some(q), Some(p)]
+    }
+}
+
+/// What the labelling remembers per view.
+#[derive(Clone, Default)]
+pub(super) struct ViewMemory {
+    pub(super) last: [Option<[f64; 2]>; 2],
+    /// Radius of the last single-sphere fit of each sphere in this view, px: the edge level
+    /// makes it a little smaller than the known diameter says, and a split silhouette is fitted
+    /// with this one.
+    pub(super) radius: [Option<f64>; 2],
+    /// Image direction from a to b the last time both were seen.
+    pub(super) a_to_b: Option<[f64; 2]>,
+    /// Whether both were measured in this view in the previous frame.
+    pub(super) both_in_previous: bool,
+    /// Recent image positions of each sphere in this view: (time s, centre px).
+    pub(super) history: [Vec<(f64, [f64; 2])>; 2],
+}
+
+impl ViewMemory {
+    /// Where sphere s should be at time t: a straight line through its last three positions in
+    /// this view, if the last is at most `max_gap_s` old.
+    pub(super) fn predict(&self, s: usize, t: f64, max_gap_s: f64) -> Option<[f64; 2]> {
+        let h = &self.history[s];
+        let u: Vec<(f64, f64)> = h.iter().map(|(t, c)| (*t, c[0])).collect();
+        let v: Vec<(f64, f64)> = h.iter().map(|(t, c)| (*t, c[1])).collect();
+        Some([
+            extrapolate(&u, t, max_gap_s)?,
+            extrapolate(&v, t, max_gap_s)?,
+        ])
+    }
+}
+
+/// Labels up to two blobs a/b. The first time both are seen, a is the one with the smaller world
+/// x (the report contract). After that identity is kept, not re-derived from x: spheres that
+/// graze each other pass, and x order flips. Through a collision the separation along the
+/// contact normal keeps its sign (they approach and leave along it), so b stays on the side a→b
+/// pointed to when both were last seen. A single blob goes to the sphere last seen nearest; a
+/// single merged blob belongs to neither.
+pub(super) fn assign<'a>(
+    blobs: &'a [Blob],
+    view: &View,
+    memory: &ViewMemory,
+    t: f64,
+    max_gap_s: f64,
+) -> [Option<&'a Blob>; 2] {
+    let mut sorted: Vec<&Blob> = blobs.iter().collect();
+    sorted.sort_by_key(|b| std::cmp::Reverse(b.area_px));
+    sorted.truncate(2);
+    match sorted.as_slice() {
+        [p, q] => {
+            let p_is_a = match memory.a_to_b {
+                Some(dir) => {
+                    (q.centroid[0] - p.centroid[0]) * dir[0]
+                        + (q.centroid[1] - p.centroid[1]) * dir[1]
+                        > 0.0
+                }
+                None => world_x(view, p.centroid) <= world_x(view, q.centroid),
+            };
+            if p_is_a {
+                [Some(p), Some(q)]
+            } else {
+                [Some(q), Some(p)]
+            }
+        }
+        [p] if !p.merged => {
+            let d = |s: usize| {
+                memory
+                    .predict(s, t, max_gap_s)
+                    .map(|c| (c[0] - p.centroid[0]).hypot(c[1] - p.centroid[1]))
+            };
+            match (d(0), d(1)) {
+                (Some(da), Some(db)) if da <= db => [Some(p), None],
+                (Some(_), Some(_)) => [None, Some(p)],
+                (Some(_), None) => [Some(p), None],
+                (None, Some(_)) => [None, Some(p)],
+                (None, None) => [None, None],
+            }
+        }
+        _ => [None, None],
+    }
+}

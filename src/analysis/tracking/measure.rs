@@ -1,0 +1,113 @@
+//! One sphere's measurement in one view: a lone blob refined to a circle with its gates and the
+//! dots inside, and two spheres touching in one silhouette fitted from where each was heading.
+
+use super::{Measurement, ViewLevels};
+use crate::analysis::circle::{refine, CircleFit, DotMask};
+use crate::analysis::detect::Blob;
+use crate::analysis::geometry::View;
+use crate::analysis::image::GreyImage;
+use crate::analysis::markers;
+use crate::config::Config;
+
+/// One sphere's measurement from its blob: the circle fit, its gates, and the dots inside.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn measure_blob(
+    img: &GreyImage,
+    view: &View,
+    b: &Blob,
+    s: usize,
+    radius_px: f64,
+    other: Option<([f64; 2], f64)>,
+    lv: &ViewLevels,
+    cfg: &Config,
+    dots: &[DotMask],
+) -> Result<(Measurement, CircleFit), String> {
+    let name = ["a", "b"][s];
+    if b.merged {
+        return Err(format!("{name}: silhouettes of a and b merged"));
+    }
+    let Some(f) = refine(img, view, b.centroid, radius_px, lv.background, other, dots) else {
+        return Err(format!("{name}: too few edge points for a circle fit"));
+    };
+    // A sphere partly beyond the view's border is fitted on its visible arc, and kept if that
+    // arc is at least half the circle: fast spheres cross a view in a dozen frames, and the
+    // ones at its edges lengthen the trajectory. (Whether the sphere flies freely there is the
+    // fits' business: `flight_phases`.)
+    if b.clipped && f.arc_sectors < 18 {
+        return Err(format!(
+            "{name}: sphere clipped by the view border (visible arc {}°, need 180°)",
+            f.arc_sectors * 10
+        ));
+    }
+    // A silhouette partly hidden by, or touching, the other sphere is not one circle: its fit
+    // is too large or rests on too few of its edge points.
+    if (f.radius - radius_px).abs() > (0.1 * radius_px).max(0.7)
+        || (f.points_used as f64) < 0.6 * f.points_total as f64
+    {
+        return Err(format!(
+            "{name}: silhouette is not one circle (fit radius {:.2} px, expected {:.2} px; {} of {} edge points agree)",
+            f.radius, radius_px, f.points_used, f.points_total
+        ));
+    }
+    let radius_mm = cfg.spheres.sphere(s).0 / 2.0;
+    let m = Measurement {
+        centre_px: f.centre,
+        blob_centroid_px: b.centroid,
+        sigma_px: f.centre_sigma,
+        diameter_px: 2.0 * f.radius,
+        // Beyond the border the frame shows another view: no dots from a clipped disc.
+        markers: if b.clipped {
+            Vec::new()
+        } else {
+            markers::find(
+                img,
+                view,
+                &f,
+                radius_mm,
+                cfg.analysis.marker_diameter_mm,
+                lv.noise_sigma,
+            )
+        },
+    };
+    Ok((m, f))
+}
+
+/// Both spheres of one silhouette in which they touch, each fitted from its predicted centre
+/// with the other's side left out (as for two blobs that nearly touch). None unless both fits
+/// land within a pixel of their predictions and no closer together than 95 % of the contact
+/// distance: touching spheres do not overlap, so a pair that does was not measured right.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn measure_touching(
+    img: &GreyImage,
+    view: &View,
+    blob: &Blob,
+    predicted: [[f64; 2]; 2],
+    radius_px: [f64; 2],
+    lv: &ViewLevels,
+    cfg: &Config,
+    dots: &[DotMask],
+) -> Option<[(Measurement, CircleFit); 2]> {
+    let part = Blob {
+        merged: false,
+        ..blob.clone()
+    };
+    let fit = |s: usize| {
+        let b = Blob {
+            centroid: predicted[s],
+            ..part.clone()
+        };
+        let other = Some((predicted[1 - s], radius_px[1 - s]));
+        measure_blob(img, view, &b, s, radius_px[s], other, lv, cfg, dots).ok()
+    };
+    let (a, b) = (fit(0)?, fit(1)?);
+    for (s, f) in [&a.1, &b.1].iter().enumerate() {
+        if (f.centre[0] - predicted[s][0]).hypot(f.centre[1] - predicted[s][1]) > 1.0 {
+            return None;
+        }
+    }
+    let apart = (a.1.centre[0] - b.1.centre[0]).hypot(a.1.centre[1] - b.1.centre[1]);
+    if apart < 0.95 * (radius_px[0] + radius_px[1]) {
+        return None;
+    }
+    Some([a, b])
+}
