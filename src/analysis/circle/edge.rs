@@ -1,7 +1,7 @@
 //! Edge-point fits: level crossings along rays, Taubin's algebraic circle, the geometric
 //! (Gauss–Newton) fit with asymmetric outlier rejection, and the fits built on them.
 
-use super::{CircleFit, GreyImage, View};
+use super::{gauss_newton, CircleFit, GreyImage, View};
 use nalgebra::{Matrix3, Vector3};
 
 /// Algebraic circle fit with Taubin's constraint (Chernov's Newton-based implementation).
@@ -64,25 +64,20 @@ fn geometric(
     points: &[[f64; 2]],
     start: ([f64; 2], f64),
 ) -> Option<([f64; 2], f64, Vec<f64>, Matrix3<f64>)> {
-    let (mut c, mut r) = start;
-    for _ in 0..30 {
+    let mut q = Vector3::new(start.0[0], start.0[1], start.1);
+    gauss_newton(&mut q, 30, |q| {
         let mut jtj = Matrix3::<f64>::zeros();
         let mut jtr = Vector3::<f64>::zeros();
         for p in points {
-            let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+            let (dx, dy) = (p[0] - q[0], p[1] - q[1]);
             let d = (dx * dx + dy * dy).sqrt().max(1e-12);
             let j = Vector3::new(-dx / d, -dy / d, -1.0);
             jtj += j * j.transpose();
-            jtr += j * (d - r);
+            jtr += j * (d - q[2]);
         }
-        let step = jtj.lu().solve(&(-jtr))?;
-        c[0] += step[0];
-        c[1] += step[1];
-        r += step[2];
-        if step.norm() < 1e-9 {
-            break;
-        }
-    }
+        (jtj, jtr, 0.0)
+    })?;
+    let (c, r) = ([q[0], q[1]], q[2]);
     let mut jtj = Matrix3::<f64>::zeros();
     let mut res = Vec::with_capacity(points.len());
     for p in points {
@@ -294,23 +289,20 @@ pub fn fit_fixed_radius(
         if keep.len() < 8 {
             return result;
         }
-        for _ in 0..20 {
+        let mut q = nalgebra::Vector2::new(c[0], c[1]);
+        gauss_newton(&mut q, 20, |q| {
             let mut jtj = nalgebra::Matrix2::<f64>::zeros();
             let mut jtr = nalgebra::Vector2::<f64>::zeros();
             for p in &keep {
-                let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+                let (dx, dy) = (p[0] - q[0], p[1] - q[1]);
                 let d = dx.hypot(dy).max(1e-12);
                 let j = nalgebra::Vector2::new(-dx / d, -dy / d);
                 jtj += j * j.transpose();
                 jtr += j * (d - radius);
             }
-            let step = jtj.lu().solve(&(-jtr))?;
-            c[0] += step[0];
-            c[1] += step[1];
-            if step.norm() < 1e-9 {
-                break;
-            }
-        }
+            (jtj, jtr, 0.0)
+        })?;
+        c = [q[0], q[1]];
         let mut jtj = nalgebra::Matrix2::<f64>::zeros();
         let res: Vec<f64> = keep
             .iter()

@@ -20,6 +20,7 @@ mod tests;
 use super::geometry::View;
 use super::image::GreyImage;
 pub use edge::*;
+use nalgebra::{SMatrix, SVector};
 pub use profile::*;
 pub use split::*;
 
@@ -75,4 +76,33 @@ impl DotMask {
             radius_px: dot_radius_px + Self::MARGIN_PX,
         }
     }
+}
+
+/// Normal equations at some parameters: (JᵀJ, Jᵀr, Σr²).
+pub(crate) type Normal<const N: usize> = (SMatrix<f64, N, N>, SVector<f64, N>, f64);
+
+/// Gauss–Newton on the parameters `p`, shared by the geometric circle fits: each iteration
+/// solves (JᵀJ) δ = −Jᵀr from the sums `normal(p)` gives, adds δ, and stops once |δ| < 1e-9 or
+/// after `max_iter` steps. Returns the sums of the last iteration (at the parameters before
+/// its step), or None where JᵀJ is singular. (The grey-level fits damp their steps, LM, in
+/// `profile`.)
+pub(crate) fn gauss_newton<const N: usize>(
+    p: &mut SVector<f64, N>,
+    max_iter: usize,
+    normal: impl Fn(&SVector<f64, N>) -> Normal<N>,
+) -> Option<Normal<N>>
+where
+    nalgebra::Const<N>: nalgebra::DimMin<nalgebra::Const<N>, Output = nalgebra::Const<N>>,
+{
+    let mut last = None;
+    for _ in 0..max_iter {
+        let (jtj, jtr, ss) = normal(p);
+        let step = jtj.lu().solve(&(-jtr))?;
+        *p += step;
+        last = Some((jtj, jtr, ss));
+        if step.norm() < 1e-9 {
+            break;
+        }
+    }
+    last
 }

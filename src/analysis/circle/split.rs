@@ -2,7 +2,7 @@
 //! without the points where the two outlines meet.
 
 use super::edge::{fit_fixed_radius, sectors_covered};
-use super::{CircleFit, GreyImage, View};
+use super::{gauss_newton, CircleFit, GreyImage, View};
 
 /// Both circles of a split silhouette at once, with one radius between them: the radius a
 /// single disc measures is not quite the radius of the union's outline (its edge level comes from
@@ -24,12 +24,10 @@ fn fit_pair_shared_radius(
         start[1].centre[1],
         0.5 * (start[0].radius + start[1].radius),
     );
-    let mut jtj = nalgebra::Matrix5::<f64>::zeros();
-    let mut ss = 0.0;
-    for _ in 0..20 {
-        jtj = nalgebra::Matrix5::zeros();
+    let (jtj, _, ss) = gauss_newton(&mut p, 20, |p| {
+        let mut jtj = nalgebra::Matrix5::<f64>::zeros();
         let mut jtr = nalgebra::Vector5::<f64>::zeros();
-        ss = 0.0;
+        let mut ss = 0.0;
         for (k, pts) in [a, b].iter().enumerate() {
             for q in pts.iter() {
                 let (dx, dy) = (q[0] - p[2 * k], q[1] - p[2 * k + 1]);
@@ -44,12 +42,8 @@ fn fit_pair_shared_radius(
                 ss += r * r;
             }
         }
-        let step = jtj.lu().solve(&(-jtr))?;
-        p += step;
-        if step.norm() < 1e-9 {
-            break;
-        }
-    }
+        (jtj, jtr, ss)
+    })?;
     let n = (a.len() + b.len()) as f64;
     let s2 = ss / (n - 5.0).max(1.0);
     let inv = jtj.try_inverse()?;
