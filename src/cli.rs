@@ -1,0 +1,190 @@
+//! The command line's arguments: every command and option, with the help text `--help` shows.
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "impactcam",
+    version,
+    about = "Sphere-collision experiments: camera, relay, recording, and e/β/ψ"
+)]
+pub(crate) struct Cli {
+    #[command(subcommand)]
+    pub(crate) command: Command,
+    /// Log lines on stderr: `human` or `json` (one object per line, for journald or a log
+    /// collector). Default: $IMPACTCAM_LOG_FORMAT, else human.
+    #[arg(long, global = true, value_enum)]
+    pub(crate) log_format: Option<LogFormat>,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub(crate) enum LogFormat {
+    Human,
+    Json,
+}
+
+#[derive(Subcommand)]
+pub(crate) enum Command {
+    /// One experiment: arm the camera, fire the relay, record, analyse, print the result.
+    Run {
+        /// Config file (TOML); without it, the embedded default (the simulated lab).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Print the report as JSON on stdout instead of the summary.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Arm, fire and record only (no analysis).
+    Capture {
+        /// Config file (TOML); without it, the embedded default (the simulated lab).
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Re-analyse a recorded session with its own config; the report must equal the recorded one.
+    Replay {
+        /// The session directory to analyse again.
+        session: PathBuf,
+        /// Print the report as JSON on stdout instead of the summary.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Analyse a session, a multi-page greyscale TIFF recorded elsewhere, or (--tracks) centres
+    /// digitised in other software.
+    Analyze {
+        /// A session directory or a multi-page greyscale TIFF stack.
+        #[arg(required_unless_present = "tracks", conflicts_with = "tracks")]
+        path: Option<PathBuf>,
+        /// CSV of digitised centres: frame,sphere,view,u,v[,time_s].
+        #[arg(long)]
+        tracks: Option<PathBuf>,
+        /// The config to analyse with. A session uses its own recorded config without it; a
+        /// TIFF stack or --tracks needs one.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Print the report as JSON on stdout instead of the summary.
+        #[arg(long)]
+        json: bool,
+        /// Where report.json goes (default: beside the input).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Replace a session's recorded report.json with one from another --config (without
+        /// this, that is refused: `replay` compares against the recorded report).
+        #[arg(long)]
+        overwrite: bool,
+    },
+    /// The lab daemon: HTTP API and web page to run and watch experiments.
+    Serve {
+        /// Config file (TOML); without it, the embedded default (the simulated lab).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Address to listen on; off loopback a token (daemon.token or IMPACTCAM_TOKEN) is required.
+        #[arg(long)]
+        listen: Option<String>,
+    },
+    /// A series of experiments over tube angles (resumable), then the campaign fit.
+    Sweep {
+        /// Config file (TOML); without it, the embedded default (the simulated lab).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Tube angles, a:b:step in degrees (inclusive), e.g. 10:65:5.
+        #[arg(long)]
+        tube_angles: String,
+        /// Simulator only: impact offsets a:b:step (the simulated tubes meet with a horizontal
+        /// relative velocity, so obliquity is set by the offset, not the tube angle).
+        #[arg(long)]
+        impact_offsets: Option<String>,
+        /// Experiments at each point of the sweep.
+        #[arg(long, default_value_t = 1)]
+        repeats: u32,
+        /// Campaign directory; an existing one is resumed.
+        #[arg(long)]
+        dir: Option<PathBuf>,
+    },
+    /// Fit e, mu, beta0 and the break point over many collisions.
+    Fit {
+        /// report.json files, session directories or campaign directories.
+        #[arg(required = true)]
+        paths: Vec<PathBuf>,
+        /// Print the fit as JSON on stdout instead of the table.
+        #[arg(long)]
+        json: bool,
+        /// Also write fit.json, collisions.csv, psi.svg and report.html here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Export a session's frames as a multi-page TIFF (Fiji/ImageJ opens it).
+    Export {
+        /// The session directory whose frames are exported.
+        session: PathBuf,
+        /// The multi-page TIFF to write (replaced whole, never left half-written).
+        #[arg(long)]
+        tiff: PathBuf,
+    },
+    /// What this machine offers: cameras (by built-in backend) and serial ports.
+    Devices,
+    /// Configuration: check a file, or print the embedded default.
+    Config {
+        #[command(subcommand)]
+        action: ConfigAction,
+    },
+    /// Benchmarks, printed as ratios against a baseline measured in the same run.
+    Bench {
+        #[command(subcommand)]
+        what: BenchWhat,
+    },
+}
+
+#[derive(Subcommand)]
+pub(crate) enum ConfigAction {
+    /// Validate a config file without touching hardware.
+    Check {
+        /// The config file (TOML) to check.
+        file: PathBuf,
+    },
+    /// Print the embedded default config.
+    Default,
+}
+
+#[derive(Subcommand)]
+pub(crate) enum BenchWhat {
+    /// Recorder throughput into RAM and onto disk against a raw sequential write.
+    Capture {
+        /// Frames per measurement.
+        #[arg(long, default_value_t = 2000)]
+        frames: usize,
+        /// Where the disk measurements write (a temporary directory inside it).
+        #[arg(long, default_value = ".")]
+        dir: PathBuf,
+    },
+    /// N experiments back to back through the daemon; memory and file descriptors compared.
+    Soak {
+        /// Experiments to run back to back.
+        #[arg(long, default_value_t = 100)]
+        experiments: usize,
+        /// Where the daemon writes its sessions (a temporary directory inside it).
+        #[arg(long, default_value = ".")]
+        dir: PathBuf,
+    },
+    /// Relay pulse latency and jitter over a serial line, against emulated modules.
+    Relay {
+        /// Pulses per emulated module.
+        #[arg(long, default_value_t = 50)]
+        pulses: usize,
+        /// Length of each pulse, ms.
+        #[arg(long, default_value_t = 20.0)]
+        pulse_ms: f64,
+    },
+    /// Accuracy of impactcam's methods and the thesis's against simulated ground truth.
+    Accuracy {
+        /// A small sweep (4 experiments) instead of the full one.
+        #[arg(long)]
+        quick: bool,
+        /// Run the sweep this many times, each with other seeds, and pool the figures.
+        #[arg(long, default_value_t = 1)]
+        repeat: u32,
+        /// Where sessions are recorded while they are analysed (removed afterwards).
+        #[arg(long, default_value = ".")]
+        dir: PathBuf,
+    },
+}
