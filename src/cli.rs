@@ -175,6 +175,12 @@ pub(crate) enum BenchWhat {
         #[arg(long, default_value_t = 20.0)]
         pulse_ms: f64,
     },
+    /// The analysis on recordings from an independent renderer (folders with frames.tif,
+    /// calibration.json, centres.csv, truth.json), against their ground truth.
+    Validation {
+        /// The folder holding the recordings, e.g. the lab's shared validation set.
+        dir: PathBuf,
+    },
     /// Accuracy of impactcam's methods and the thesis's against simulated ground truth.
     Accuracy {
         /// A small sweep (4 experiments) instead of the full one.

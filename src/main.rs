@@ -278,6 +278,13 @@ fn real_main(cli: Cli) -> Result<i32> {
                 );
                 Ok(0)
             }
+            BenchWhat::Validation { dir } => {
+                print!(
+                    "{}",
+                    impactcam::bench::validation::validation(&dir).map_err(anyhow::Error::msg)?
+                );
+                Ok(0)
+            }
             BenchWhat::Accuracy { quick, repeat, dir } => {
                 if repeat == 0 {
                     bail!("--repeat: 0 runs nothing, expected at least 1");

@@ -51,6 +51,7 @@ const COMMANDS: &[&[&str]] = &[
     &["bench", "soak"],
     &["bench", "relay"],
     &["bench", "accuracy"],
+    &["bench", "validation"],
 ];
 
 #[test]

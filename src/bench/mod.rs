@@ -5,5 +5,6 @@ pub mod accuracy;
 pub mod capture;
 pub mod relay;
 pub mod soak;
+pub mod validation;
 
 pub use capture::capture;

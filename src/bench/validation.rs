@@ -1,0 +1,291 @@
+//! `impactcam bench validation DIR`: the analysis on recordings from a renderer that is not
+//! hw-sim (each a folder with `frames.tif`, `calibration.json`, `centres.csv`, `truth.json`, as
+//! the lab's validation set has them), compared with their ground truth. It checks; it tunes
+//! nothing: the figures are printed with each estimate's error in units of its own σ, so an
+//! uncertainty that does not cover the error shows. Views that only a general (rotated) map
+//! describes are reported as not analysable with the shorthand geometry.
+
+use crate::config::{Config, ViewGeometry};
+use serde_json::Value;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// One recording's comparison, as printed.
+struct Row {
+    name: String,
+    outcome: Result<Figures, String>,
+}
+
+#[derive(Default)]
+struct Figures {
+    /// (quantity, error, error / σ).
+    estimates: Vec<(String, f64, f64)>,
+    centre_errors_px: Vec<f64>,
+    centres_expected: usize,
+}
+
+fn num(v: &Value) -> Option<f64> {
+    v.as_f64()
+}
+
+/// The config an experimenter would write from `calibration.json`, or why there is none.
+fn config_from_calibration(cal: &Value) -> Result<Config, String> {
+    let mut cfg = Config::default_config();
+    let c = &cal["calibration"];
+    cfg.camera.width = c["image_width"]
+        .as_u64()
+        .ok_or("calibration.image_width missing")? as u32;
+    cfg.camera.height = c["image_height"]
+        .as_u64()
+        .ok_or("calibration.image_height missing")? as u32;
+    cfg.camera.frame_rate_hz = num(&cal["fps"]).ok_or("fps missing")?;
+    let (da, db) = (
+        num(&cal["diameter_a_m"]).ok_or("diameter_a_m missing")? * 1e3,
+        num(&cal["diameter_b_m"]).ok_or("diameter_b_m missing")? * 1e3,
+    );
+    let (ma, mb) = (
+        num(&cal["mass_a_kg"]).ok_or("mass_a_kg missing")? * 1e3,
+        num(&cal["mass_b_kg"]).ok_or("mass_b_kg missing")? * 1e3,
+    );
+    cfg.spheres.diameter_mm = da;
+    cfg.spheres.mass_g = ma;
+    let toml = format!(
+        "[spheres]\ndiameter_mm = {da}\nmass_g = {ma}\n[spheres.a]\ndiameter_mm = {da}\nmass_g = {ma}\n[spheres.b]\ndiameter_mm = {db}\nmass_g = {mb}\n"
+    );
+    let spheres = Config::from_toml_str(&toml, "calibration.json")
+        .map_err(|e| e.to_string())?
+        .spheres;
+    cfg.spheres = spheres;
+    cfg.analysis.gravity_mm_s2 = num(&cal["gravity_mps2"]).ok_or("gravity_mps2 missing")? * 1e3;
+    let view = |name: &str| -> Result<ViewGeometry, String> {
+        let v = &c[name];
+        let rows = v["rows"].as_array().ok_or(format!("{name}.rows missing"))?;
+        let (r0, r1) = (
+            rows.first().and_then(Value::as_u64).unwrap_or(0) as u32,
+            rows.get(1).and_then(Value::as_u64).unwrap_or(0) as u32,
+        );
+        let a = &v["A"];
+        let mut axes = Vec::new();
+        for row in 0..2 {
+            let r: Vec<f64> = (0..3).map(|k| num(&a[row][k]).unwrap_or(0.0)).collect();
+            let (k, big) = r
+                .iter()
+                .enumerate()
+                .max_by(|x, y| x.1.abs().total_cmp(&y.1.abs()))
+                .map(|(k, x)| (k, *x))
+                .unwrap_or((0, 0.0));
+            let rest: f64 = r
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != k)
+                .map(|(_, x)| x.abs())
+                .sum();
+            if big == 0.0 || rest > 1e-6 * big.abs() {
+                return Err(format!(
+                    "the {name} view is rotated (A row {row} = {r:?}): only a general map describes it (real-rig geometry issue)"
+                ));
+            }
+            axes.push((
+                format!(
+                    "{}{}",
+                    if big > 0.0 { '+' } else { '-' },
+                    ['x', 'y', 'z'][k]
+                ),
+                big.abs(),
+            ));
+        }
+        let b = &v["b"];
+        Ok(ViewGeometry {
+            region: [0, r0, cfg.camera.width, r1.saturating_sub(r0)],
+            // A is px per metre: the scale of u (both rows agree for a square-pixel view).
+            px_per_mm: axes[0].1 / 1000.0,
+            origin_px: [num(&b[0]).unwrap_or(0.0), num(&b[1]).unwrap_or(0.0)],
+            u_axis: axes[0].0.clone(),
+            v_axis: axes[1].0.clone(),
+        })
+    };
+    cfg.geometry.direct = Some(view("direct")?);
+    cfg.geometry.mirror = Some(view("mirror")?);
+    cfg.validate()
+        .map_err(|e| format!("config from calibration.json: {e}"))?;
+    Ok(cfg)
+}
+
+fn read_json(path: &Path) -> Result<Value, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Compares one recording's report with its truth.
+fn compare(dir: &Path) -> Result<Figures, String> {
+    let cal = read_json(&dir.join("calibration.json"))?;
+    let truth = read_json(&dir.join("truth.json"))?;
+    let cfg = config_from_calibration(&cal)?;
+    let report =
+        crate::experiment::analyze_path(&dir.join("frames.tif"), Some(&cfg), &mut |_, _| {})
+            .map_err(|e| format!("no result: {e}"))?;
+    let report = serde_json::to_value(&report).map_err(|e| e.to_string())?;
+    let imp = &truth["impact"];
+    let mut f = Figures::default();
+    let mut est = |name: &str, got: &Value, want: Option<f64>| {
+        if let (Some(v), Some(s), Some(w)) = (num(&got["value"]), num(&got["uncertainty"]), want) {
+            f.estimates
+                .push((name.into(), v - w, (v - w) / s.max(1e-300)));
+        } else if want.is_some() {
+            f.estimates.push((name.into(), f64::NAN, f64::NAN));
+        }
+    };
+    est("e", &report["e"], num(&imp["e_effective"]));
+    est("psi1", &report["psi1"], num(&imp["psi1"]));
+    est("psi2", &report["psi2"], num(&imp["psi2"]));
+    est("beta", &report["beta"], num(&imp["beta_effective"]));
+    for s in ["a", "b"] {
+        for (phase, key, unit) in [
+            ("pre", "velocity_pre_mm_s", 1e3),
+            ("post", "velocity_post_mm_s", 1e3),
+            ("pre", "spin_pre_rad_s", 1.0),
+            ("post", "spin_post_rad_s", 1.0),
+        ] {
+            let field = if key.starts_with("velocity") {
+                "velocity_mps"
+            } else {
+                "spin_radps"
+            };
+            let got = &report["spheres"][s][key];
+            for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+                let want = num(&imp[phase][s][field][k]).map(|w| w * unit);
+                let one = serde_json::json!({"value": got["value"][k], "uncertainty": got["uncertainty"][k]});
+                est(&format!("{s} {key} {axis}"), &one, want);
+            }
+        }
+    }
+    // Centres, per frame and view, against centres.csv.
+    let csv = std::fs::read_to_string(dir.join("centres.csv")).map_err(|e| e.to_string())?;
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name);
+    let tracks = report["tracks"].as_array().cloned().unwrap_or_default();
+    for line in lines {
+        let cells: Vec<f64> = line
+            .split(',')
+            .map(|c| c.parse().unwrap_or(f64::NAN))
+            .collect();
+        let frame = cells.first().copied().unwrap_or(f64::NAN) as u64;
+        let track = tracks.iter().find(|t| t["frame"].as_u64() == Some(frame));
+        for s in ["a", "b"] {
+            for (view, cu, cv) in [
+                ("direct", "x_direct", "y_direct"),
+                ("mirror", "x_mirror", "z_mirror"),
+            ] {
+                let (Some(iu), Some(iv)) = (col(&format!("{s}_{cu}")), col(&format!("{s}_{cv}")))
+                else {
+                    continue;
+                };
+                f.centres_expected += 1;
+                let got = track.map(|t| &t[s][view]["centre_px"]);
+                if let Some(g) = got {
+                    if let (Some(u), Some(v)) = (num(&g[0]), num(&g[1])) {
+                        f.centre_errors_px
+                            .push((u - cells[iu]).hypot(v - cells[iv]));
+                    }
+                }
+            }
+        }
+    }
+    Ok(f)
+}
+
+/// The comparison over every recording (a folder holding `truth.json`) under `dir`.
+pub fn validation(dir: &Path) -> Result<String, String> {
+    let mut sessions: Vec<_> = std::fs::read_dir(dir)
+        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.join("truth.json").is_file())
+        .collect();
+    sessions.sort();
+    if sessions.is_empty() {
+        return Err(format!(
+            "{}: no recordings (folders with truth.json)",
+            dir.display()
+        ));
+    }
+    let rows: Vec<Row> = sessions
+        .iter()
+        .map(|p| Row {
+            name: p
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            outcome: compare(p),
+        })
+        .collect();
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "independent recordings under {} (errors against their truth; z = error / reported σ)",
+        dir.display()
+    );
+    let _ = writeln!(
+        out,
+        "{:<6} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9} {:>8}  note",
+        "", "Δe", "Δψ1", "Δψ2", "Δβ", "centre RMS", "found", "max |z|"
+    );
+    let mut all_z = Vec::new();
+    for r in &rows {
+        match &r.outcome {
+            Err(e) => {
+                let _ = writeln!(
+                    out,
+                    "{:<6} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9} {:>8}  {e}",
+                    r.name, "-", "-", "-", "-", "-", "-", "-"
+                );
+            }
+            Ok(f) => {
+                let get = |n: &str| f.estimates.iter().find(|e| e.0 == n).map(|e| e.1);
+                let fmt = |v: Option<f64>| {
+                    v.filter(|x| x.is_finite())
+                        .map_or("null".to_string(), |x| format!("{x:+.4}"))
+                };
+                let rms = if f.centre_errors_px.is_empty() {
+                    f64::NAN
+                } else {
+                    (f.centre_errors_px.iter().map(|e| e * e).sum::<f64>()
+                        / f.centre_errors_px.len() as f64)
+                        .sqrt()
+                };
+                let zs: Vec<f64> = f
+                    .estimates
+                    .iter()
+                    .map(|e| e.2)
+                    .filter(|z| z.is_finite())
+                    .collect();
+                let max_z = zs.iter().fold(0.0f64, |m, z| m.max(z.abs()));
+                all_z.extend(zs);
+                let _ = writeln!(
+                    out,
+                    "{:<6} {:>9} {:>9} {:>9} {:>9} {:>7.3} px {:>4}/{:<4} {:>8.1}",
+                    r.name,
+                    fmt(get("e")),
+                    fmt(get("psi1")),
+                    fmt(get("psi2")),
+                    fmt(get("beta")),
+                    rms,
+                    f.centre_errors_px.len(),
+                    f.centres_expected,
+                    max_z
+                );
+            }
+        }
+    }
+    let analysed = rows.iter().filter(|r| r.outcome.is_ok()).count();
+    let covered = all_z.iter().filter(|z| z.abs() <= 1.0).count();
+    let beyond5 = all_z.iter().filter(|z| z.abs() > 5.0).count();
+    let _ = writeln!(
+        out,
+        "{analysed} of {} recordings gave a result; of their {} estimates with a σ, {:.0} % within ±1σ (55–80 % is honest) and {beyond5} beyond 5σ",
+        rows.len(),
+        all_z.len(),
+        if all_z.is_empty() { f64::NAN } else { 100.0 * covered as f64 / all_z.len() as f64 }
+    );
+    Ok(out)
+}
