@@ -222,11 +222,35 @@ pub fn record(
     }
     // Frames that arrived during the preflight are still before the firing: the ring keeps
     // the latest of them.
-    while let Ok(Ok(f)) = acq.rx.try_recv() {
-        ring.push_back(f);
-        while ring.len() > keep {
-            if let Some(old) = ring.pop_front() {
-                let _ = acq.recycle.send(old.data);
+    // A camera that failed meanwhile fires nothing.
+    loop {
+        match acq.rx.try_recv() {
+            Ok(Ok(f)) => {
+                ring.push_back(f);
+                while ring.len() > keep {
+                    if let Some(old) = ring.pop_front() {
+                        let _ = acq.recycle.send(old.data);
+                    }
+                }
+            }
+            Ok(Err(e)) => {
+                session.abandon();
+                acq.finish(camera);
+                return Err(RecordError::NotArmed {
+                    frames: seen,
+                    timeout_ms: rec.arm_timeout_ms,
+                    detail: e.to_string(),
+                });
+            }
+            Err(std::sync::mpsc::TryRecvError::Empty) => break,
+            Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                session.abandon();
+                acq.finish(camera);
+                return Err(RecordError::NotArmed {
+                    frames: seen,
+                    timeout_ms: rec.arm_timeout_ms,
+                    detail: "acquisition stopped before firing".into(),
+                });
             }
         }
     }
