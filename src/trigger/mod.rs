@@ -3,7 +3,8 @@
 //! This module is the only code that drives a relay. Its invariants: the relay is opened again
 //! on every path (pulse elapsed, abort, error, panic, drop), it is never held closed longer than
 //! `relay_pulse_ms_max`, and it cannot be fired without proof that the camera is delivering
-//! frames (`CameraLive`, which only the recorder can create).
+//! frames (`CameraLive`, which only the recorder can create). A real relay is switched by the
+//! relay guard (`guard`), a child process that opens it even when this process is killed.
 
 #[cfg(feature = "gpio")]
 pub mod gpio;
