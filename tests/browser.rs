@@ -166,4 +166,6 @@ fn clicking_run_in_a_browser_shows_the_result() {
     let past = wait_for(&mut eval, "(t => t.includes('from the browser') && t.includes('done') ? t : '')(document.getElementById('past').textContent)", 10);
     assert!(past.as_str().unwrap().contains("0001done"), "{past}");
     wait_for(&mut eval, "document.getElementById('traj').complete && document.getElementById('traj').naturalWidth > 0", 10);
+    // The frame at impact loads too (its element's id was once the impact time's, twice).
+    wait_for(&mut eval, "document.getElementById('impact-frame').complete && document.getElementById('impact-frame').naturalWidth > 0", 10);
 }
