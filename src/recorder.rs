@@ -173,12 +173,7 @@ pub fn record(
         match acq.rx.recv_timeout(left.min(Duration::from_millis(100))) {
             Ok(Ok(f)) => {
                 seen += 1;
-                ring.push_back(f);
-                while ring.len() > keep {
-                    if let Some(old) = ring.pop_front() {
-                        let _ = acq.recycle.send(old.data);
-                    }
-                }
+                keep_latest(&mut ring, f, keep, &acq.recycle);
             }
             Ok(Err(e)) => {
                 acq.finish(camera);
@@ -223,36 +218,24 @@ pub fn record(
     // Frames that arrived during the preflight are still before the firing: the ring keeps
     // the latest of them.
     // A camera that failed meanwhile fires nothing.
-    loop {
+    let camera_failed = loop {
         match acq.rx.try_recv() {
-            Ok(Ok(f)) => {
-                ring.push_back(f);
-                while ring.len() > keep {
-                    if let Some(old) = ring.pop_front() {
-                        let _ = acq.recycle.send(old.data);
-                    }
-                }
-            }
-            Ok(Err(e)) => {
-                session.abandon();
-                acq.finish(camera);
-                return Err(RecordError::NotArmed {
-                    frames: seen,
-                    timeout_ms: rec.arm_timeout_ms,
-                    detail: e.to_string(),
-                });
-            }
-            Err(std::sync::mpsc::TryRecvError::Empty) => break,
+            Ok(Ok(f)) => keep_latest(&mut ring, f, keep, &acq.recycle),
+            Ok(Err(e)) => break Some(e.to_string()),
+            Err(std::sync::mpsc::TryRecvError::Empty) => break None,
             Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                session.abandon();
-                acq.finish(camera);
-                return Err(RecordError::NotArmed {
-                    frames: seen,
-                    timeout_ms: rec.arm_timeout_ms,
-                    detail: "acquisition stopped before firing".into(),
-                });
+                break Some("acquisition stopped before firing".into())
             }
         }
+    };
+    if let Some(detail) = camera_failed {
+        session.abandon();
+        acq.finish(camera);
+        return Err(RecordError::NotArmed {
+            frames: seen,
+            timeout_ms: rec.arm_timeout_ms,
+            detail,
+        });
     }
     if rec.pre_trigger_frames == 0 {
         ring.clear();
@@ -397,6 +380,22 @@ pub fn record(
         frames_recorded: recorded,
         frames_dropped: dropped,
     })
+}
+
+/// Appends `f` to the pre-trigger ring and hands the frames beyond the last `keep` back to
+/// the acquisition thread for reuse.
+fn keep_latest(
+    ring: &mut VecDeque<Frame>,
+    f: Frame,
+    keep: usize,
+    recycle: &std::sync::mpsc::Sender<Vec<u8>>,
+) {
+    ring.push_back(f);
+    while ring.len() > keep {
+        if let Some(old) = ring.pop_front() {
+            let _ = recycle.send(old.data);
+        }
+    }
 }
 
 /// Free space asked for beyond the frames themselves: index lines, manifest, report, plots.

@@ -215,12 +215,7 @@ fn recorded_report_and_truth(toml: &str) -> (serde_json::Value, serde_json::Valu
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let session = std::fs::read_dir(tmp.path().join("sessions"))
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
+    let session = common::first_session(tmp.path());
     let read = |name: &str| -> serde_json::Value {
         serde_json::from_slice(&std::fs::read(session.join(name)).unwrap()).unwrap()
     };

@@ -65,12 +65,7 @@ fn crafted_sessions_are_refused_naming_the_file_and_line() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let session = std::fs::read_dir(tmp.path().join("sessions"))
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
+    let session = common::first_session(tmp.path());
     let s = session.to_str().unwrap();
 
     // frames.idx: ids out of order around the impact, a timestamp of 2^64-1, a duplicated id.

@@ -5,7 +5,7 @@
 //! uncertainty that does not cover the error shows. Views that only a general (rotated) map
 //! describes are reported as not analysable with the shorthand geometry.
 
-use crate::config::{Config, ViewGeometry};
+use crate::config::{Config, SphereOverride, ViewGeometry};
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -49,13 +49,10 @@ fn config_from_calibration(cal: &Value) -> Result<Config, String> {
     );
     cfg.spheres.diameter_mm = da;
     cfg.spheres.mass_g = ma;
-    let toml = format!(
-        "[spheres]\ndiameter_mm = {da}\nmass_g = {ma}\n[spheres.a]\ndiameter_mm = {da}\nmass_g = {ma}\n[spheres.b]\ndiameter_mm = {db}\nmass_g = {mb}\n"
-    );
-    let spheres = Config::from_toml_str(&toml, "calibration.json")
-        .map_err(|e| e.to_string())?
-        .spheres;
-    cfg.spheres = spheres;
+    cfg.spheres.b = Some(SphereOverride {
+        diameter_mm: Some(db),
+        mass_g: Some(mb),
+    });
     cfg.analysis.gravity_mm_s2 = num(&cal["gravity_mps2"]).ok_or("gravity_mps2 missing")? * 1e3;
     let view = |name: &str| -> Result<ViewGeometry, String> {
         let v = &c[name];

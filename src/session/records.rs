@@ -22,7 +22,7 @@ impl CameraInfo {
 }
 
 /// The trigger as its backend describes it (the manifest's `trigger` adds the pulse).
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct TriggerInfo {
     pub backend: String,
     pub port: Option<String>,

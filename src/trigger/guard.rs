@@ -67,13 +67,13 @@ pub struct GuardedRelay {
 }
 
 impl GuardedRelay {
-    /// Starts the guard, which opens the relay (and sets it open) before answering `ready`.
+    /// Starts the guard, which opens the relay (and sets it open) before answering `ready`
+    /// with what the relay says of itself.
     pub fn spawn(
         exe: &std::path::Path,
         trigger: &TriggerConfig,
         port: &str,
         backend: &'static str,
-        info: TriggerInfo,
     ) -> Result<GuardedRelay, TriggerError> {
         let fail = |message: String| TriggerError::Open {
             port: port.into(),
@@ -107,16 +107,28 @@ impl GuardedRelay {
             child,
             commands: None,
             answers: BufReader::new(answers),
-            info,
+            // Until the guard says more.
+            info: TriggerInfo {
+                backend: backend.into(),
+                port: Some(port.into()),
+                protocol: None,
+                channel: None,
+            },
         };
         if let Err(e) = writeln!(commands, "{line}").and_then(|_| commands.flush()) {
             return Err(fail(format!("cannot talk to the relay guard: {e}")));
         }
         relay.commands = Some(commands);
-        match relay.answer() {
-            Ok(a) if a == "ready" => Ok(relay),
-            Ok(a) => Err(fail(a.strip_prefix("error ").unwrap_or(&a).to_string())),
-            Err(e) => Err(fail(e)),
+        let answer = relay.answer().map_err(fail)?;
+        match answer.strip_prefix("ready ") {
+            Some(info) => {
+                relay.info = serde_json::from_str(info)
+                    .map_err(|e| fail(format!("the relay guard's answer {info:?}: {e}")))?;
+                Ok(relay)
+            }
+            None => Err(fail(
+                answer.strip_prefix("error ").unwrap_or(&answer).to_string(),
+            )),
         }
     }
 
@@ -233,7 +245,11 @@ pub fn guard_main() -> i32 {
     };
     let max_closed =
         Duration::from_secs_f64(spec.trigger.relay_pulse_ms_max.clamp(0.0, 10_000.0) / 1000.0);
-    if writeln!(out, "ready").and_then(|_| out.flush()).is_err() {
+    let info = serde_json::to_string(&relay.info()).unwrap_or_default();
+    if writeln!(out, "ready {info}")
+        .and_then(|_| out.flush())
+        .is_err()
+    {
         let _ = open_hard(&mut *relay);
         return 1;
     }

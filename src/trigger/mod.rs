@@ -56,30 +56,6 @@ fn sim_trigger(t: &crate::config::TriggerConfig) -> crate::config::TriggerConfig
     }
 }
 
-/// What a relay reports of itself, known before it is opened (the guard's parent says it).
-fn open_info(t: &crate::config::TriggerConfig, port: &str, backend: &str) -> TriggerInfo {
-    use crate::config::RelayProtocol;
-    let protocol = match (backend, t.protocol) {
-        ("sim", _) | (_, RelayProtocol::Lcus) => "lcus",
-        (_, RelayProtocol::Numato) => "numato",
-        (_, RelayProtocol::Generic) => "generic",
-    };
-    if backend == "gpio" {
-        return TriggerInfo {
-            backend: backend.into(),
-            port: Some(format!("{} line {}", t.gpio_chip, t.gpio_line)),
-            protocol: None,
-            channel: None,
-        };
-    }
-    TriggerInfo {
-        backend: backend.into(),
-        port: Some(port.into()),
-        protocol: Some(protocol.into()),
-        channel: Some(t.channel),
-    }
-}
-
 /// Opens a relay in this process: `backend` is "serial", "sim" (the simulator's PTY, always
 /// LCUS) or "gpio".
 pub(crate) fn open_direct(
@@ -153,10 +129,7 @@ impl Trigger {
             ),
         };
         let relay: Box<dyn Relay> = match guard::executable() {
-            Some(exe) => {
-                let info = open_info(t, port, backend);
-                Box::new(guard::GuardedRelay::spawn(exe, t, port, backend, info)?)
-            }
+            Some(exe) => Box::new(guard::GuardedRelay::spawn(exe, t, port, backend)?),
             None => open_direct(t, port, backend)?,
         };
         Ok(Trigger::new(relay, t.relay_pulse_ms, t.relay_pulse_ms_max))
