@@ -189,6 +189,12 @@ pub(crate) enum BenchWhat {
         /// Run the sweep this many times, each with other seeds, and pool the figures.
         #[arg(long, default_value_t = 1)]
         repeat: u32,
+        /// How the rig looks: `default` (hw-sim's own look, on which the analysis was
+        /// developed: an in-distribution figure), `varied` (each experiment draws a look family
+        /// and its parameters from its seed), or one family: side_lit, specular, backlit,
+        /// cluttered, defocus, paint, mixed.
+        #[arg(long, default_value = "default")]
+        looks: String,
         /// Where sessions are recorded while they are analysed (removed afterwards).
         #[arg(long, default_value = ".")]
         dir: PathBuf,

@@ -285,12 +285,24 @@ fn real_main(cli: Cli) -> Result<i32> {
                 );
                 Ok(0)
             }
-            BenchWhat::Accuracy { quick, repeat, dir } => {
+            BenchWhat::Accuracy {
+                quick,
+                repeat,
+                looks,
+                dir,
+            } => {
                 if repeat == 0 {
                     bail!("--repeat: 0 runs nothing, expected at least 1");
                 }
+                let looks = (looks != "default").then_some(looks);
+                if let Some(l) = &looks {
+                    hw_sim::Look::draw(l, 0).map_err(|e| {
+                        anyhow::anyhow!("--looks: {}", e.trim_start_matches("sim.look_family: "))
+                    })?;
+                }
                 let tmp = dir.join(format!(".impactcam-accuracy-{}", std::process::id()));
-                let text = impactcam::bench::accuracy::accuracy(quick, repeat, &tmp);
+                let text =
+                    impactcam::bench::accuracy::accuracy(quick, repeat, looks.as_deref(), &tmp);
                 let _ = std::fs::remove_dir_all(&tmp);
                 print!("{text}");
                 Ok(0)

@@ -96,6 +96,8 @@ impl SimCamera {
             let release = self.lab.release_time_s();
             let stage = self.lab.stage();
             let mut data = buf;
+            self.renderer
+                .set_tube_exits([stage.scenario.tube_exit(0), stage.scenario.tube_exit(1)]);
             self.renderer.render(
                 t,
                 &move |tt| SimLab::bodies_in(&stage.scenario, tt, release),

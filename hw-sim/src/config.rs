@@ -2,6 +2,7 @@
 //! (the experiment the simulator stages), `Scene` is what the rig looks like (camera frame, views,
 //! spheres), filled in by the caller from its own geometry.
 
+use crate::look::Look;
 use crate::physics::Material;
 use serde::{Deserialize, Serialize};
 
@@ -78,6 +79,11 @@ pub struct LabConfig {
     pub mirror_scale_error: f64,
     /// The real mirror view is shifted by this much (u, v) from the configured origin, px.
     pub mirror_offset_error_px: [f64; 2],
+    /// How the rig looks (light, surface, paint, clutter, focus); absent = the original render.
+    pub look: Option<Look>,
+    /// Draw the look at random from this family and the seed (`Look::FAMILIES`, or "varied");
+    /// the drawn look also sets `background_grey`, `sphere_grey` and `marker_grey`.
+    pub look_family: Option<String>,
 }
 
 impl Default for LabConfig {
@@ -112,6 +118,8 @@ impl Default for LabConfig {
             pace: Pace::RealTime,
             mirror_scale_error: 0.0,
             mirror_offset_error_px: [0.0, 0.0],
+            look: None,
+            look_family: None,
         }
     }
 }
@@ -138,8 +146,32 @@ impl LabConfig {
         Ok(m)
     }
 
+    /// The config with `look_family` replaced by the look it draws from the seed (and that
+    /// look's grey levels); unchanged without one.
+    pub fn with_look_drawn(&self) -> Result<LabConfig, String> {
+        let mut out = self.clone();
+        if let Some(family) = out.look_family.take() {
+            if self.look.is_some() {
+                return Err(
+                    "sim.look, sim.look_family: give a look or a family to draw one from, not both"
+                        .into(),
+                );
+            }
+            let (look, levels) = Look::draw(&family, self.seed)?;
+            out.look = Some(look);
+            out.background_grey = levels.background_grey;
+            out.sphere_grey = levels.sphere_grey;
+            out.marker_grey = levels.marker_grey;
+        }
+        Ok(out)
+    }
+
     /// Checks every value; the error names the key (`sim.…`) and what was expected.
     pub fn validate(&self) -> Result<(), String> {
+        let drawn = self.with_look_drawn()?;
+        if let Some(look) = &drawn.look {
+            look.validate()?;
+        }
         let m = self.material()?;
         let range = |key: &str, v: f64, lo: f64, hi: f64| -> Result<(), String> {
             if v.is_finite() && v >= lo && v <= hi {

@@ -31,6 +31,7 @@ pub struct SimLab {
 
 impl SimLab {
     pub fn new(cfg: LabConfig, mut scene: Scene) -> Result<Arc<SimLab>, String> {
+        let cfg = cfg.with_look_drawn()?;
         // The lab's true mirror view, which the caller's nominal geometry may not match.
         for v in scene.views.iter_mut().filter(|v| v.name == "mirror") {
             v.px_per_mm *= 1.0 + cfg.mirror_scale_error;
@@ -61,6 +62,7 @@ impl SimLab {
     /// a real rig: a new scenario from `cfg`'s experiment keys (tube angle, material, offset…),
     /// released by the next relay closing. Noise, drops and pace stay as opened.
     pub fn restage(&self, cfg: &LabConfig) -> Result<(), String> {
+        let cfg = &cfg.with_look_drawn()?;
         let scenario = Scenario::new(cfg, &self.scene.spheres)?;
         let stage = Arc::new(Stage {
             scenario,
@@ -174,7 +176,7 @@ impl SimLab {
             })
             .collect();
         let o = sc.outcome.as_ref();
-        json!({
+        let mut truth = json!({
             "schema": "hw-sim.truth/1",
             "material": sc.material,
             "relay_events": self.relay_events(),
@@ -193,7 +195,11 @@ impl SimLab {
                 "b": {"pre": state(&sc.pre[1]), "post": state(&sc.post[1]), "diameter_mm": 2.0 * sc.pre[1].radius_mm},
             },
             "frames": per_frame,
-        })
+        });
+        if let Some(look) = &self.cfg.look {
+            truth["look"] = json!(look);
+        }
+        truth
     }
 }
 

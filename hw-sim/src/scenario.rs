@@ -72,7 +72,7 @@ impl Scenario {
             wall_up[1].cross(&tube_dir[1]),
         ];
         let start_orientation = [random_orientation(&mut rng), random_orientation(&mut rng)];
-        let markers = [
+        let mut markers = [
             random_markers(
                 &mut rng,
                 cfg.markers_per_sphere,
@@ -134,6 +134,18 @@ impl Scenario {
                 mass_g: mass[i],
             };
         }
+        if cfg.look.as_ref().is_some_and(|l| l.markers_one_hemisphere) {
+            // Painted on the side the direct camera (world +z) sees as the sphere leaves its
+            // tube: each marker on the far side is reflected through the x–y plane.
+            for i in 0..2 {
+                let q = exit[i].orientation;
+                for m in markers[i].iter_mut() {
+                    let mut w = q * *m;
+                    w.z = w.z.abs();
+                    *m = q.inverse() * w;
+                }
+            }
+        }
         let pre = [ballistic(&exit[0], t_f), ballistic(&exit[1], t_f)];
         let (post, outcome) = if miss {
             (pre, None)
@@ -186,6 +198,12 @@ impl Scenario {
         } else {
             ballistic(&self.post[i], tau - self.impact_tau_s)
         }
+    }
+
+    /// Where sphere i leaves its tube (its centre at the exit, mm) and the tube's direction
+    /// (unit, downhill): what a look's tube ends are drawn from.
+    pub fn tube_exit(&self, i: usize) -> (V3, V3) {
+        (self.exit[i].pos_mm, self.tube_dir[i])
     }
 
     /// World positions of sphere i's markers (on its surface) at τ.

@@ -8,6 +8,7 @@
 //! frames that could not be measured; it fails only when no honest result exists (no spheres,
 //! no impact, too few frames).
 
+mod backdrop;
 mod calibration;
 pub mod circle;
 pub mod detect;
@@ -102,6 +103,12 @@ pub fn analyze_detailed(
             )));
         }
     }
+    // Each frame is measured against what stands still in its view, bright side up.
+    let backdrop = backdrop::Backdrop::estimate(src, &views)?;
+    let src = &mut backdrop::Normalised {
+        inner: src,
+        backdrop,
+    };
     // Two passes over the frames, each counted as half of the progress: the first finds the
     // markers and spins, the second measures the circles again without the dots that the
     // spins put on each rim.

@@ -142,8 +142,9 @@ pub fn robust_fit(points: &[[f64; 2]], oversampling: f64) -> Option<CircleFit> {
     })
 }
 
-/// Edge points of the disc around `centre`: along each ray, the first fall through `level`
-/// outward from inside the disc, interpolated linearly between samples.
+/// Edge points of the disc around `centre`: along ray k (of `ray_levels.len()`, evenly spaced
+/// in angle), the first fall through its level outward from inside the disc, interpolated
+/// linearly between samples; `ray_levels[k]` is (level, dip).
 ///
 /// A ray that crosses a marker is not used: its profile dips and rises again inside the disc
 /// (by more than `dip`), or rises back above `level` just after the "edge". Dark markers near
@@ -155,15 +156,14 @@ pub fn edge_points(
     view: &View,
     centre: [f64; 2],
     radius_px: f64,
-    level: f64,
-    dip: f64,
-    rays: usize,
+    ray_levels: &[(f64, f64)],
 ) -> Vec<[f64; 2]> {
+    let rays = ray_levels.len();
     let mut pts = Vec::with_capacity(rays);
     let step = 0.2;
     let r_start = (radius_px - 3.0).max(radius_px * 0.4);
     let r_end = radius_px + 3.0;
-    for k in 0..rays {
+    for (k, &(level, dip)) in ray_levels.iter().enumerate() {
         let a = std::f64::consts::TAU * k as f64 / rays as f64;
         let (dx, dy) = (a.cos(), a.sin());
         let mut prev: Option<(f64, f64)> = None;
@@ -223,7 +223,11 @@ pub fn sectors_covered(points: &[[f64; 2]], centre: [f64; 2]) -> usize {
 pub const NEIGHBOUR_MARGIN_PX: f64 = 3.0;
 
 /// A circle through edge points on rays from a rough centre, where the grey level crosses
-/// halfway between `background` and the shaded rim just inside the edge.
+/// halfway between `background` and the shading just inside the edge on that side.
+///
+/// Why per side: a sphere lit from one side is bright at its rim there and at the ambient
+/// floor on the other; one level for the whole rim crosses the dark side's edge far inside
+/// it, or not at all, and such a disc was rejected as "not one circle".
 pub fn fit_edges(
     img: &GreyImage,
     view: &View,
@@ -234,33 +238,47 @@ pub fn fit_edges(
 ) -> Option<CircleFit> {
     let rays = ((std::f64::consts::TAU * radius_px * 1.5).round() as usize).clamp(24, 720);
     let oversampling = rays as f64 / (std::f64::consts::TAU * radius_px);
-    // The level is halfway to the shaded rim just inside the edge, measured on this sphere.
-    let mut rim: Vec<f64> = (0..rays)
-        .filter_map(|k| {
-            let a = std::f64::consts::TAU * k as f64 / rays as f64;
-            let (u, v) = (
-                rough[0] + (radius_px - 1.5) * a.cos(),
-                rough[1] + (radius_px - 1.5) * a.sin(),
-            );
-            // Beyond the view's border the frame shows another view.
-            view.contains(u, v).then(|| img.sample(u, v)).flatten()
-        })
-        .collect();
-    if rim.len() < rays / 4 {
-        return None;
-    }
-    rim.sort_by(f64::total_cmp);
-    // Upper-middle of the rim: markers pull the lower part down.
-    let interior = rim[rim.len() * 3 / 4];
-    if interior <= background {
-        return None;
-    }
-    let level = background + 0.5 * (interior - background);
     let mut centre = rough;
     let mut fit = None;
     for _ in 0..2 {
-        let dip = 0.1 * (interior - background);
-        let mut pts = edge_points(img, view, centre, radius_px, level, dip, rays);
+        // The shading 1.5 px inside the edge on each ray; beyond the view's border the frame
+        // shows another view.
+        let rim: Vec<Option<f64>> = (0..rays)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / rays as f64;
+                let (u, v) = (
+                    centre[0] + (radius_px - 1.5) * a.cos(),
+                    centre[1] + (radius_px - 1.5) * a.sin(),
+                );
+                view.contains(u, v).then(|| img.sample(u, v)).flatten()
+            })
+            .collect();
+        if rim.iter().filter(|r| r.is_some()).count() < rays / 4 {
+            return fit;
+        }
+        // Per ray, the upper part of its neighbourhood's rim (a quarter turn's worth, which
+        // dots, darker, pull down only at the bottom), so that a dot does not lower a level.
+        let half = (rays / 16).max(2);
+        let mut window: Vec<f64> = Vec::with_capacity(2 * half + 1);
+        let ray_levels: Vec<(f64, f64)> = (0..rays)
+            .map(|k| {
+                window.clear();
+                window.extend((0..=2 * half).filter_map(|j| rim[(k + rays + j - half) % rays]));
+                if window.is_empty() {
+                    return (f64::INFINITY, 0.0);
+                }
+                window.sort_by(f64::total_cmp);
+                let interior = window[window.len() * 3 / 4];
+                if interior <= background {
+                    return (f64::INFINITY, 0.0);
+                }
+                (
+                    background + 0.5 * (interior - background),
+                    0.1 * (interior - background),
+                )
+            })
+            .collect();
+        let mut pts = edge_points(img, view, centre, radius_px, &ray_levels);
         if let Some((oc, or)) = other {
             pts.retain(|p| (p[0] - oc[0]).hypot(p[1] - oc[1]) > or + NEIGHBOUR_MARGIN_PX);
         }

@@ -30,7 +30,7 @@ pub fn profile_fit(
         other.is_some_and(|(oc, or)| (u - oc[0]).hypot(v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
     };
     let pixels = ring_pixels(img, view, &[start], dots, near_other)?;
-    let [fit] = fit_grey_levels::<8, 1>(&pixels, [start], background, Layering::Apart)?;
+    let [fit] = fit_grey_levels::<11, 1>(&pixels, [start], background, Layering::Apart)?;
     Some(fit)
 }
 
@@ -55,7 +55,7 @@ pub fn profile_fit_pair(
         return None;
     }
     let pixels = ring_pixels(img, view, &starts, dots, |_, _| false)?;
-    fit_grey_levels::<15, 2>(&pixels, starts, background, Layering::Apart)
+    fit_grey_levels::<21, 2>(&pixels, starts, background, Layering::Apart)
 }
 
 /// Two discs of one silhouette, one partly hiding the other (the mirror after an oblique
@@ -95,8 +95,12 @@ pub fn profile_fit_behind(
     if sectors_covered(&shown, b.centre) < 12 {
         return None;
     }
-    fit_grey_levels::<15, 2>(&pixels, starts, background, Layering::InFront(front))
+    fit_grey_levels::<21, 2>(&pixels, starts, background, Layering::InFront(front))
 }
+
+/// Parameters per disc in `fit_grey_levels`: centre (2), radius, edge width, and the shading's
+/// floor a, lamp amplitude b, lamp direction (c₁, c₂) and first harmonic (a₁, a₂).
+const DISC_PARAMS: usize = 10;
 
 /// The narrowest crescent `profile_fit_behind` fits, in radii of the back disc.
 const MIN_CRESCENT_RADII: f64 = 0.75;
@@ -204,8 +208,10 @@ fn ring_pixels(
 const SUBPIXEL_OFFSETS: [f64; 3] = [-1.0 / 3.0, 0.0, 1.0 / 3.0];
 
 /// Pixels whose centre lies within this of an edge are integrated over their area
-/// (`fit_grey_levels`), px.
-const EDGE_ZONE_PX: f64 = 1.0;
+/// (`fit_grey_levels`), px: the whole band. A sphere lit from the side has a kink inside its
+/// edge where the lamp's light ends at the ambient floor, on one side only; sampling the
+/// model at the pixels' centres there moved the centre 0.015 px away from the lamp.
+const EDGE_ZONE_PX: f64 = PROFILE_BAND_PX + 0.1;
 
 /// One pixel of a ring: its centre (u, v), grey level, and whether an edge crosses it closely
 /// enough that its area is integrated.
@@ -218,7 +224,8 @@ struct RingPixel {
 }
 
 /// Levenberg–Marquardt fit of `N` discs' grey-level model (see `profile_fit`) to `pixels`,
-/// P = 1 + 7·N parameters: the background, then per disc [cx, cy, R, s, a, b, c]; `layering`
+/// P = 1 + 10·N parameters: the background, then per disc [cx, cy, R, s, a, b, c₁, c₂, a₁, a₂]
+/// (`DISC_PARAMS`); `layering`
 /// says whether two discs' terms add or one hides the other. Each disc must settle within a
 /// pixel of its start.
 fn fit_grey_levels<const P: usize, const N: usize>(
@@ -232,7 +239,7 @@ where
 {
     type Vp<const P: usize> = nalgebra::SVector<f64, P>;
     type Mp<const P: usize> = nalgebra::SMatrix<f64, P, P>;
-    debug_assert_eq!(P, 1 + 7 * N);
+    debug_assert_eq!(P, 1 + DISC_PARAMS * N);
     // Only a disc that hides another needs its step's own derivatives (hot path: every pixel,
     // nine times near the edge).
     let hiding = matches!(layering, Layering::InFront(_)) && N == 2;
@@ -243,28 +250,62 @@ where
         let mut step = [0.0; N];
         let mut d_step = [Vp::<P>::zeros(); N];
         for k in 0..N {
-            let o = 1 + 7 * k;
+            let o = 1 + DISC_PARAMS * k;
             let (du, dv) = (u - p[o], v - p[o + 1]);
             let d = du.hypot(dv).max(1e-9);
+            let (cs, sn) = (du / d, dv / d);
             let x = p[o + 2] - d;
             let s = p[o + 3];
             let l = 1.0 / (1.0 + (-x / s).exp());
-            let inner = p[o + 4] + p[o + 5] * x + p[o + 6] * x * x;
+            // The shading inside the edge, in the sphere's own terms: a matte sphere under a
+            // distant lamp and an ambient floor shows a + b·max(0, l·n), n = (ρ cos θ,
+            // ρ sin θ, n_z) its normal and l ∝ (c₁, c₂, 1) the lamp: lit along the view it
+            // rises as n_z = √(1 − ρ²), i.e. as √x at the limb, which no polynomial follows;
+            // lit from one side it is brighter there and flat at the floor on the other,
+            // which no symmetric model follows (it put centres 0.1–0.4 px towards the lamp).
+            // Added: a first harmonic (a₁, a₂) of the level round the disc, for what a lamp is
+            // not (highlights, uneven light). (A slope in x beside n_z made the two trade off
+            // within the band and the fit wander.)
+            let r = p[o + 2];
+            let rho2 = (d / r) * (d / r);
+            let nz = (1.0 - rho2).max(0.0).sqrt();
+            // dn_z/dd and dn_z/dR, bounded where n_z → 0 (at the edge the step is ½ anyway).
+            let nzc = nz.max(0.05);
+            let (dnz_dd, dnz_dr) = if nz > 0.0 {
+                (-d / (r * r * nzc), d * d / (r * r * r * nzc))
+            } else {
+                (0.0, 0.0)
+            };
+            let (c1, c2) = (p[o + 6], p[o + 7]);
+            let g = (c1 * du + c2 * dv) / r + nz;
+            let lit = if g > 0.0 { 1.0 } else { 0.0 };
+            let b = p[o + 5];
+            let inner = p[o + 4] + b * g.max(0.0) + p[o + 8] * cs + p[o + 9] * sn;
             let dl_dx = l * (1.0 - l) / s;
             let dl_ds = -l * (1.0 - l) * x / (s * s);
-            let di_dx = dl_dx * inner + l * (p[o + 5] + 2.0 * p[o + 6] * x);
+            // dd/dcx = −cos θ, dd/dcy = −sin θ; d(cos θ)/dcx = −sin²θ/d, d(sin θ)/dcx =
+            // cos θ sin θ/d, and for cy the same turned by 90°.
+            let dg_dcx = -c1 / r - dnz_dd * cs;
+            let dg_dcy = -c2 / r - dnz_dd * sn;
+            let dg_dr = -(c1 * du + c2 * dv) / (r * r) + dnz_dr;
+            let di_dcx = b * lit * dg_dcx + (-p[o + 8] * sn * sn + p[o + 9] * cs * sn) / d;
+            let di_dcy = b * lit * dg_dcy + (p[o + 8] * cs * sn - p[o + 9] * cs * cs) / d;
+            let di_dr = b * lit * dg_dr;
             let j = &mut d_term[k];
-            j[o] = di_dx * du / d;
-            j[o + 1] = di_dx * dv / d;
-            j[o + 2] = di_dx;
+            j[o] = dl_dx * cs * inner + l * di_dcx;
+            j[o + 1] = dl_dx * sn * inner + l * di_dcy;
+            j[o + 2] = dl_dx * inner + l * di_dr;
             j[o + 3] = dl_ds * inner;
             j[o + 4] = l;
-            j[o + 5] = l * x;
-            j[o + 6] = l * x * x;
+            j[o + 5] = l * g.max(0.0);
+            j[o + 6] = l * b * lit * du / r;
+            j[o + 7] = l * b * lit * dv / r;
+            j[o + 8] = l * cs;
+            j[o + 9] = l * sn;
             if hiding {
                 let js = &mut d_step[k];
-                js[o] = dl_dx * du / d;
-                js[o + 1] = dl_dx * dv / d;
+                js[o] = dl_dx * cs;
+                js[o + 1] = dl_dx * sn;
                 js[o + 2] = dl_dx;
                 js[o + 3] = dl_ds;
             }
@@ -314,7 +355,7 @@ where
     let mut p = Vp::<P>::zeros();
     p[0] = background;
     for (k, st) in starts.iter().enumerate() {
-        let o = 1 + 7 * k;
+        let o = 1 + DISC_PARAMS * k;
         p[o] = st.centre[0];
         p[o + 1] = st.centre[1];
         p[o + 2] = st.radius;
@@ -324,7 +365,7 @@ where
     // background and each disc's (a, b, c).
     {
         let lin_index: Vec<usize> = std::iter::once(0)
-            .chain((0..N).flat_map(|k| (4..7).map(move |i| 1 + 7 * k + i)))
+            .chain((0..N).flat_map(|k| [4, 5, 8, 9].map(move |i| 1 + DISC_PARAMS * k + i)))
             .collect();
         let m = lin_index.len();
         let mut a = nalgebra::DMatrix::<f64>::zeros(m, m);
@@ -339,13 +380,27 @@ where
         for (i, &idx) in lin_index.iter().enumerate() {
             p[idx] = lin[i];
         }
+        // The lamp's direction from the harmonic the linear fit found (near the limb ρ ≈
+        // 0.9, so b·c·ρ ≈ a₁), and the harmonic handed over to it; a disc darker inside than
+        // at its rim gets no lamp.
+        for k in 0..N {
+            let o = 1 + DISC_PARAMS * k;
+            if p[o + 5] > 0.0 {
+                p[o + 6] = (p[o + 8] / (0.9 * p[o + 5])).clamp(-2.0, 2.0);
+                p[o + 7] = (p[o + 9] / (0.9 * p[o + 5])).clamp(-2.0, 2.0);
+                p[o + 8] = 0.0;
+                p[o + 9] = 0.0;
+            } else {
+                p[o + 5] = 0.0;
+            }
+        }
     }
     // A disc behind another shows a crescent, which fixes its radius poorly: there the radii
     // keep the ratio of the starts (the spheres' sizes are known), as a stiff penalty on
     // R_back − k·R_front whose gradient row is `tie_row`.
     let tie = match layering {
         Layering::InFront(f) if N == 2 => {
-            let (rf, rb) = (1 + 7 * f + 2, 1 + 7 * (1 - f) + 2);
+            let (rf, rb) = (1 + DISC_PARAMS * f + 2, 1 + DISC_PARAMS * (1 - f) + 2);
             Some((rf, rb, starts[1 - f].radius / starts[f].radius))
         }
         _ => None,
@@ -364,7 +419,14 @@ where
             .sum::<f64>()
             + TIE_WEIGHT * tie_residual(p).powi(2)
     };
-    let widths_ok = |p: &Vp<P>| (0..N).all(|k| p[4 + 7 * k] > 0.05 && p[4 + 7 * k] < 3.0);
+    // Edge widths stay plausible, and a lamp gives light (b ≥ 0): with b < 0 the model has
+    // other, unphysical ways to fit a band only 2.5 px deep.
+    let widths_ok = |p: &Vp<P>| {
+        (0..N).all(|k| {
+            let o = 1 + DISC_PARAMS * k;
+            p[o + 3] > 0.05 && p[o + 3] < 3.0 && p[o + 5] >= 0.0
+        })
+    };
     let n_start = pixels.len();
     // Levenberg–Marquardt from p on the pixels kept, until the centres move less than
     // `settled_px`; returns the last JᵀJ.
@@ -387,8 +449,11 @@ where
             let mut accepted: Option<f64> = None;
             for _ in 0..8 {
                 let mut damped = jtj;
+                // The floor keeps a parameter the pixels do not fix (a lamp's direction on a
+                // flat disc) from making the step singular.
+                let floor = 1e-9 * (0..P).map(|i| jtj[(i, i)]).fold(0.0, f64::max);
                 for i in 0..P {
-                    damped[(i, i)] *= 1.0 + lambda;
+                    damped[(i, i)] = damped[(i, i)] * (1.0 + lambda) + floor * (1.0 + lambda);
                 }
                 let Some(step) = damped.lu().solve(&jtr) else {
                     lambda *= 10.0;
@@ -402,7 +467,7 @@ where
                     lambda = (lambda * 0.3).max(1e-9);
                     accepted = Some(
                         (0..N)
-                            .map(|k| step.fixed_rows::<3>(1 + 7 * k).norm())
+                            .map(|k| step.fixed_rows::<3>(1 + DISC_PARAMS * k).norm())
                             .fold(0.0, f64::max),
                     );
                     break;
@@ -434,7 +499,9 @@ where
         sorted.sort_by(f64::total_cmp);
         // A floor of 3 % of the edge's contrast: in a noise-free image the residuals are the
         // model's own misfit, and rejecting those would empty the ring.
-        let contrast = (0..N).map(|k| p[5 + 7 * k].abs()).fold(f64::MAX, f64::min);
+        let contrast = (0..N)
+            .map(|k| p[5 + DISC_PARAMS * k].abs())
+            .fold(f64::MAX, f64::min);
         let sigma = (1.4826 * sorted[sorted.len() / 2])
             .max(0.03 * contrast)
             .max(0.5);
@@ -458,10 +525,15 @@ where
     }
     let n = keep.len() as f64;
     let s2 = cost(&p, &keep, true) / (n - P as f64).max(1.0);
-    let cov = jtj.try_inverse()? * s2;
+    let mut ridged = jtj;
+    let floor = 1e-9 * (0..P).map(|i| jtj[(i, i)]).fold(0.0, f64::max);
+    for i in 0..P {
+        ridged[(i, i)] += floor;
+    }
+    let cov = ridged.try_inverse()? * s2;
     let mut out = [*starts[0]; N];
     for (k, st) in starts.iter().enumerate() {
-        let o = 1 + 7 * k;
+        let o = 1 + DISC_PARAMS * k;
         let moved = (p[o] - st.centre[0]).hypot(p[o + 1] - st.centre[1]);
         if moved > 1.0 || (p[o + 2] - st.radius).abs() > 1.0 {
             return None;

@@ -269,8 +269,10 @@ fn touching_discs_fitted_together_keep_the_side_that_faces_the_other() {
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
     let (ra, rt, mt) = (rms(&alone), rms(&together), mean(&together));
+    // Since the shading model follows the lamp round each disc, the one fitted alone scatters
+    // less too (0.010 px, was 0.016), and the joint fit's gain is smaller.
     assert!(
-        rt < 0.8 * ra,
+        rt < 0.9 * ra,
         "along the line between them: together {rt:.4} px, alone {ra:.4} px"
     );
     assert!(
@@ -578,4 +580,47 @@ fn a_disc_cut_by_the_view_border_is_fitted_on_its_grey_levels() {
         sm < 0.8 * se,
         "cut disc: grey levels {sm:.4} px, edge points {se:.4} px"
     );
+}
+
+/// A lone sphere lit from 30° to one side (Lambertian, ambient floor 0.4), noise σ = 2: the
+/// centre from `refine` is unbiased to 0.01 px along the light and across it. A shading model
+/// symmetric round the disc put such centres 0.1–0.4 px towards the lit side.
+#[test]
+fn a_lone_sphere_lit_from_the_side_is_not_biased() {
+    for azimuth_deg in [0.0, 120.0, 250.0] {
+        let (view, r_px, mut cfg) = dotless_direct_view(64, 64, [31.3, 31.6]);
+        cfg.look = Some(hw_sim::Look {
+            views: vec![hw_sim::ViewLook {
+                light_off_axis_deg: 30.0,
+                light_azimuth_deg: azimuth_deg,
+                ..Default::default()
+            }],
+            ambient: 0.4,
+            ..Default::default()
+        });
+        let far = V3::new(100.0, 100.0, 0.0);
+        let (mut sum, n) = ([0.0f64; 2], 48);
+        for k in 0..n {
+            // Sub-pixel phases spread over a pixel, so pixel locking averages out.
+            let kf = k as f64;
+            let c = V3::new(
+                (kf * 0.618).fract() / view.px_per_mm,
+                (kf * 0.382).fract() / view.px_per_mm,
+                0.0,
+            );
+            let (img, truth) = render_pair(&view, 64, 64, [c, far], &cfg, 700 + k);
+            let rough = [truth[0][0] + 0.4, truth[0][1] - 0.3];
+            let f = refine(&img, &view, rough, r_px, cfg.background_grey, None, &[])
+                .expect("a lone sphere is measured");
+            sum[0] += f.centre[0] - truth[0][0];
+            sum[1] += f.centre[1] - truth[0][1];
+        }
+        let bias = sum.map(|s| s / n as f64);
+        assert!(
+            bias[0].abs() < 0.01 && bias[1].abs() < 0.01,
+            "lit from azimuth {azimuth_deg}°: mean error ({:+.4}, {:+.4}) px",
+            bias[0],
+            bias[1]
+        );
+    }
 }

@@ -130,6 +130,35 @@ pub(super) fn assign_by_continuity<'a>(
     }
 }
 
+/// Labels two blobs by each sphere's own recent track in this view (`ViewMemory::predict`),
+/// when both tracks are recent, each blob lies within `radius_px` of its prediction, and the
+/// other labelling would be at least three times as far off; None otherwise.
+pub(super) fn assign_by_prediction<'a>(
+    blobs: &'a [Blob],
+    memory: &ViewMemory,
+    t: f64,
+    max_gap_s: f64,
+    radius_px: f64,
+) -> Option<[Option<&'a Blob>; 2]> {
+    let [Some(pa), Some(pb)] = [0, 1].map(|s| memory.predict(s, t, max_gap_s)) else {
+        return None;
+    };
+    let [p, q] = blobs else { return None };
+    let d = |b: &Blob, c: [f64; 2]| (b.centroid[0] - c[0]).hypot(b.centroid[1] - c[1]);
+    let (straight, swapped) = (d(p, pa) + d(q, pb), d(q, pa) + d(p, pb));
+    let (best, worst, labels) = if straight <= swapped {
+        (straight, swapped, [Some(p), Some(q)])
+    } else {
+        (swapped, straight, [Some(q), Some(p)])
+    };
+    let each_close = if straight <= swapped {
+        d(p, pa).max(d(q, pb))
+    } else {
+        d(q, pa).max(d(p, pb))
+    };
+    (each_close < radius_px && worst > 3.0 * best).then_some(labels)
+}
+
 /// What the labelling remembers per view.
 #[derive(Clone, Default)]
 pub(super) struct ViewMemory {

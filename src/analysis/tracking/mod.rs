@@ -17,7 +17,10 @@ use std::collections::HashMap;
 mod identity;
 mod measure;
 
-use identity::{assign, assign_by_continuity, assign_by_x, extrapolate, label_split, ViewMemory};
+use identity::{
+    assign, assign_by_continuity, assign_by_prediction, assign_by_x, extrapolate, label_split,
+    ViewMemory,
+};
 use measure::{measure_blob, measure_touching};
 
 #[derive(Clone, Debug)]
@@ -188,7 +191,18 @@ impl Tracker {
         {
             return;
         }
+        // A secondary view the primary cannot help (the spheres are outside the primary's
+        // region) keeps identity through lost frames (a sphere clipped by the view's border,
+        // a frame not measured) by where each sphere's own track in this view says it is now,
+        // when that is unambiguous; up to `TRACK_GAP_FRAMES` frames.
+        let by_track = if vi > 0 && primary_x == [None, None] && blobs.len() == 2 {
+            let gap_s = TRACK_GAP_FRAMES * self.recent_s / 3.0;
+            assign_by_prediction(&blobs, &self.memory[vi], cx.t, gap_s, r_mean)
+        } else {
+            None
+        };
         let assigned = match primary_x {
+            _ if by_track.is_some() => by_track.unwrap_or([None, None]),
             // Closer in x than a diameter, one may hide the other in this view: a single
             // blob is then both, partly, and neither centre can be trusted.
             [Some(xa), Some(xb)] if (xa - xb).abs() < contact_mm && blobs.len() < 2 => {
@@ -520,6 +534,10 @@ impl Tracker {
         }
     }
 }
+
+/// How many frames a secondary view's own tracks carry identity without a measurement
+/// (`identity::assign_by_prediction`, which also asks that the labelling be unambiguous).
+const TRACK_GAP_FRAMES: f64 = 20.0;
 
 /// How far the grey-level refit of a split silhouette may move a disc from the split's own
 /// circle and still be taken, px (`circle::profile_fit_behind`).

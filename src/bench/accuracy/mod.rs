@@ -32,6 +32,9 @@ pub struct Case {
     pub width: u32,
     pub height: u32,
     pub seed: u64,
+    /// `sim.look_family` (a family of `hw_sim::Look::FAMILIES`, or "varied"); None is the
+    /// default look, on which the analysis was developed (an in-distribution figure).
+    pub looks: Option<String>,
 }
 
 /// The sweep: every tube angle with obliquities from head-on to grazing (both branches), at
@@ -49,6 +52,7 @@ pub fn sweep(quick: bool) -> Vec<Case> {
             width: w,
             height: h,
             seed,
+            looks: None,
         });
     };
     if quick {
@@ -97,6 +101,7 @@ pub fn case_config(c: &Case, dir: &Path) -> Config {
     cfg.sim.impact_offset = c.impact_offset;
     cfg.sim.noise_sigma_grey = c.noise_sigma_grey;
     cfg.sim.seed = c.seed;
+    cfg.sim.look_family = c.looks.clone();
     // Real time: in free-run the camera renders far ahead of the relay, and the release would
     // land outside the recording.
     cfg.sim.pace = hw_sim::Pace::RealTime;
@@ -142,6 +147,14 @@ pub struct CaseResult {
     pub frames_analysed: usize,
     pub true_psi1: f64,
     pub true_branch: String,
+    /// The look family the case was drawn from ("default" without one).
+    pub look_family: String,
+    /// Per measured centre (sphere, view, frame): estimate − truth along u and v, px.
+    pub centre_err_uv: Vec<[f64; 2]>,
+    /// Frames where both spheres were wholly in a view and apart (by the truth), and of those
+    /// the ones where both were measured there.
+    pub apart_frames: usize,
+    pub apart_measured: usize,
 }
 
 fn v3(v: &Value) -> V3 {
@@ -162,7 +175,10 @@ fn angle_err(rotvec: V3, truth: V3) -> f64 {
 const PHASES: [(&str, &str); 4] = [("a", "pre"), ("b", "pre"), ("a", "post"), ("b", "post")];
 
 pub fn run_case(c: &Case, dir: &Path) -> CaseResult {
-    let mut out = CaseResult::default();
+    let mut out = CaseResult {
+        look_family: c.looks.clone().unwrap_or_else(|| "default".into()),
+        ..CaseResult::default()
+    };
     let cfg = case_config(c, dir);
     let recorded = Rig::open(&cfg)
         .map_err(|e| e.to_string())
@@ -191,6 +207,9 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
         .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))?;
     out.true_psi1 = truth["psi1"].as_f64().unwrap_or(f64::NAN);
     out.true_branch = truth["branch"].as_str().unwrap_or("").into();
+    if let Some(f) = truth["look"]["family"].as_str() {
+        out.look_family = f.into();
+    }
     // Baseline for the analysis time: reading the same frames from disk.
     let mut reader = SessionReader::open(session).map_err(|e| e.to_string())?;
     let t0 = Instant::now();
@@ -272,6 +291,8 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
                 };
                 out.centre_err_px
                     .push((m.centre_px[0] - tu).hypot(m.centre_px[1] - tv));
+                out.centre_err_uv
+                    .push([m.centre_px[0] - tu, m.centre_px[1] - tv]);
                 let sphere = &tf["spheres"][name];
                 let c = v3(&sphere["centre_mm"]);
                 let r_px = m.diameter_px / 2.0;
@@ -311,6 +332,43 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
                 }
                 let r = m.blob_centroid_px.map(f64::round);
                 out.thesis_centre_err_px.push((r[0] - tu).hypot(r[1] - tv));
+            }
+        }
+    }
+    // Detection rate: frames where, by the truth, both discs lie wholly inside a view's region
+    // with a gap of at least a pixel between them, and whether both were measured there.
+    let measured: HashMap<u64, &analysis::tracking::FrameObs> =
+        details.obs.iter().map(|f| (f.frame_id, f)).collect();
+    for (id, tf) in &frames {
+        for (vi, view) in details.views.iter().enumerate() {
+            let disc = |name: &str| {
+                let t = &tf["spheres"][name]["views"][view.kind.name()];
+                Some((
+                    t["centre_px"][0].as_f64()?,
+                    t["centre_px"][1].as_f64()?,
+                    t["diameter_px"].as_f64()? / 2.0,
+                ))
+            };
+            let (Some(a), Some(b)) = (disc("a"), disc("b")) else {
+                continue;
+            };
+            let [rx, ry, rw, rh] = view.region.map(|x| x as f64);
+            let inside = |d: (f64, f64, f64)| {
+                d.0 - d.2 > rx + 1.0
+                    && d.0 + d.2 < rx + rw - 2.0
+                    && d.1 - d.2 > ry + 1.0
+                    && d.1 + d.2 < ry + rh - 2.0
+            };
+            let apart = (a.0 - b.0).hypot(a.1 - b.1) > a.2 + b.2 + 1.0;
+            if !(inside(a) && inside(b) && apart) {
+                continue;
+            }
+            out.apart_frames += 1;
+            if measured
+                .get(id)
+                .is_some_and(|f| f.spheres[0][vi].is_some() && f.spheres[1][vi].is_some())
+            {
+                out.apart_measured += 1;
             }
         }
     }
@@ -369,10 +427,16 @@ pub fn repeated_sweep(quick: bool, repeat: u32) -> Vec<Case> {
         .collect()
 }
 
-/// Runs the sweep (`repeat` times) and prints the accuracy table.
-pub fn accuracy(quick: bool, repeat: u32, dir: &Path) -> String {
+/// Runs the sweep (`repeat` times) and prints the accuracy table. `looks`: None for the
+/// default look, or a family of `hw_sim::Look::FAMILIES` or "varied" (each experiment draws
+/// its own look from its seed).
+pub fn accuracy(quick: bool, repeat: u32, looks: Option<&str>, dir: &Path) -> String {
     let results: Vec<(Case, CaseResult)> = repeated_sweep(quick, repeat)
         .into_iter()
+        .map(|c| Case {
+            looks: looks.map(str::to_string),
+            ..c
+        })
         .map(|c| {
             let r = run_case(&c, dir);
             (c, r)
@@ -431,6 +495,7 @@ mod tests {
                 width,
                 height: if width == 240 { 192 } else { 480 },
                 seed,
+                looks: None,
             };
             let r = CaseResult {
                 e: Some((de, 0.01)),
@@ -454,5 +519,45 @@ mod tests {
             line,
             "e on the goals' data (240×192, σ = 2 grey levels; 3 experiments): median |Δe| 0.0100, max 0.0410 (seed 2, 50°, offset 0.97); 1 above 0.03"
         );
+    }
+
+    /// `--looks varied` reports every family it drew, and pooled: a family dropped from the
+    /// draw or from the table fails here.
+    #[test]
+    fn every_look_family_gets_its_row() {
+        let mut drawn: Vec<String> = (0..200u64)
+            .map(|seed| hw_sim::Look::draw("varied", seed).expect("varied").0.family)
+            .collect();
+        drawn.sort();
+        drawn.dedup();
+        assert_eq!(drawn.len(), hw_sim::Look::FAMILIES.len());
+        let results: Vec<(Case, CaseResult)> = drawn
+            .iter()
+            .enumerate()
+            .map(|(k, f)| {
+                let c = Case {
+                    tube_angle_deg: 30.0,
+                    impact_offset: 0.3,
+                    noise_sigma_grey: 2.0,
+                    width: 240,
+                    height: 192,
+                    seed: k as u64,
+                    looks: Some("varied".into()),
+                };
+                let r = CaseResult {
+                    look_family: f.clone(),
+                    e: Some((0.001, 0.01)),
+                    ..Default::default()
+                };
+                (c, r)
+            })
+            .collect();
+        let text = table::by_look(&results);
+        for f in hw_sim::Look::FAMILIES.iter().chain(["pooled"].iter()) {
+            assert!(
+                text.lines().any(|l| l.split_whitespace().next() == Some(f)),
+                "no row for {f}:\n{text}"
+            );
+        }
     }
 }

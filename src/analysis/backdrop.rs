@@ -1,0 +1,236 @@
+//! What stands still in each view, and which way the spheres differ from it.
+//!
+//! A rig shows more than two spheres: tube ends, a ruler, the mirror's edge, dust, a background
+//! lit unevenly; and it may be backlit, the spheres dark on a bright ground. Everything after
+//! this module expects bright spheres on a flat dark ground, so each frame is normalised here
+//! before it is measured: per view, the static backdrop (a low quantile over frames sampled
+//! across the recording, taken per pixel) is subtracted and the view's backdrop level added
+//! back, and a view whose moving things are darker than their ground is inverted. The backdrop
+//! is what is there when no sphere is: a sphere covers a pixel for a short part of a flight, so
+//! a quantile on the ground's side of the spheres (the 20th percentile for bright spheres, the
+//! 80th for dark ones) leaves them out as long as no pixel is covered in more than 80 % of the
+//! sampled frames. With fewer than `MIN_FRAMES` frames there is no backdrop, only the polarity.
+
+use super::geometry::View;
+use super::image::GreyImage;
+use super::report::Source;
+use super::source::FrameSource;
+use super::AnalysisError;
+use crate::config::Config;
+use crate::session::FrameMeta;
+
+/// Frames sampled for the backdrop, at most.
+const SAMPLES: usize = 31;
+/// Fewer frames than this give no backdrop (a quantile of so few says little).
+pub const MIN_FRAMES: usize = 9;
+/// The backdrop's quantile on the ground's side of the spheres.
+const GROUND_QUANTILE: f64 = 0.2;
+
+/// One view's normalisation.
+#[derive(Clone, Debug)]
+struct ViewBackdrop {
+    name: &'static str,
+    /// x0, y0, x1, y1 in the frame (exclusive ends).
+    rect: [usize; 4],
+    /// The spheres are darker than the ground here: the view is inverted.
+    dark_spheres: bool,
+    /// The static image of the view (row-major over `rect`), when there are enough frames.
+    still: Option<Vec<f32>>,
+    /// The level the ground is given after normalisation.
+    level: f32,
+}
+
+/// The per-view normalisation of a recording's frames.
+#[derive(Clone, Debug, Default)]
+pub struct Backdrop {
+    views: Vec<ViewBackdrop>,
+}
+
+impl Backdrop {
+    /// Samples the recording and estimates each view's polarity and static backdrop.
+    pub fn estimate(src: &mut dyn FrameSource, views: &[View]) -> Result<Backdrop, AnalysisError> {
+        let n = src.len();
+        let k = n.min(SAMPLES);
+        let mut frames: Vec<GreyImage> = Vec::with_capacity(k);
+        for j in 0..k {
+            // Evenly spread, first and last included.
+            let i = if k > 1 { j * (n - 1) / (k - 1) } else { 0 };
+            let mut img = GreyImage::new();
+            src.read(i, &mut img)?;
+            frames.push(img);
+        }
+        let Some(first) = frames.first() else {
+            return Ok(Backdrop::default());
+        };
+        let (w, h) = (first.width, first.height);
+        let mut out = Vec::with_capacity(views.len());
+        for view in views {
+            let [x, y, vw, vh] = view.region.map(|v| v as usize);
+            let rect = [x.min(w), y.min(h), (x + vw).min(w), (y + vh).min(h)];
+            let dark_spheres = dark_spheres(&frames, rect);
+            let still = (k >= MIN_FRAMES).then(|| {
+                let q = if dark_spheres {
+                    1.0 - GROUND_QUANTILE
+                } else {
+                    GROUND_QUANTILE
+                };
+                let idx = ((k - 1) as f64 * q).round() as usize;
+                let mut column = vec![0f32; k];
+                let mut still = Vec::with_capacity((rect[2] - rect[0]) * (rect[3] - rect[1]));
+                for v in rect[1]..rect[3] {
+                    for u in rect[0]..rect[2] {
+                        for (c, f) in column.iter_mut().zip(&frames) {
+                            *c = f.at(u, v);
+                        }
+                        column.select_nth_unstable_by(idx, f32::total_cmp);
+                        still.push(column[idx]);
+                    }
+                }
+                still
+            });
+            let mut ground: Vec<f32> = match &still {
+                Some(s) => s.clone(),
+                None => (rect[1]..rect[3])
+                    .flat_map(|v| (rect[0]..rect[2]).map(move |u| (u, v)))
+                    .map(|(u, v)| first.at(u, v))
+                    .collect(),
+            };
+            let level = if ground.is_empty() {
+                0.0
+            } else {
+                let mid = ground.len() / 2;
+                *ground.select_nth_unstable_by(mid, f32::total_cmp).1
+            };
+            let level = if dark_spheres { 255.0 - level } else { level };
+            out.push(ViewBackdrop {
+                name: view.kind.name(),
+                rect,
+                dark_spheres,
+                still,
+                level,
+            });
+        }
+        Ok(Backdrop { views: out })
+    }
+
+    /// Normalises one frame in place (see the module's doc).
+    pub fn apply(&self, img: &mut GreyImage) {
+        let w = img.width;
+        for vb in &self.views {
+            let [x0, y0, x1, y1] = vb.rect;
+            if x1 > img.width || y1 > img.height {
+                continue;
+            }
+            let rw = x1 - x0;
+            for v in y0..y1 {
+                for u in x0..x1 {
+                    let p = &mut img.data[v * w + u];
+                    let ground = vb
+                        .still
+                        .as_ref()
+                        .map(|s| s[(v - y0) * rw + (u - x0)])
+                        .unwrap_or(if vb.dark_spheres {
+                            255.0 - vb.level
+                        } else {
+                            vb.level
+                        });
+                    *p = if vb.dark_spheres {
+                        vb.level + (ground - *p)
+                    } else {
+                        vb.level + (*p - ground)
+                    };
+                }
+            }
+        }
+    }
+
+    /// What a reader of the report must know: views measured inverted.
+    pub fn warnings(&self) -> Vec<String> {
+        self.views
+            .iter()
+            .filter(|v| v.dark_spheres)
+            .map(|v| {
+                format!(
+                    "{} view: the spheres are darker than their ground (backlit); measured as silhouettes, so markers are not expected there",
+                    v.name
+                )
+            })
+            .collect()
+    }
+}
+
+/// Whether what differs from a view's ground is darker than it: in each sampled frame, the
+/// view's darkest 0.3 % against its brightest 0.3 %, each measured from the median; a frame
+/// votes only where one side stands out clearly (8× the noise) and is at least twice the other.
+/// The noise is measured between neighbouring pixels, which an uneven ground does not inflate.
+fn dark_spheres(frames: &[GreyImage], rect: [usize; 4]) -> bool {
+    let mut votes = 0i32;
+    let mut vals: Vec<f32> = Vec::new();
+    let mut steps: Vec<f32> = Vec::new();
+    for f in frames {
+        vals.clear();
+        steps.clear();
+        for v in rect[1]..rect[3] {
+            for u in rect[0]..rect[2] {
+                vals.push(f.at(u, v));
+                if u + 1 < rect[2] {
+                    steps.push((f.at(u + 1, v) - f.at(u, v)).abs());
+                }
+            }
+        }
+        if vals.len() < 16 || steps.is_empty() {
+            continue;
+        }
+        vals.sort_unstable_by(f32::total_cmp);
+        let q = |p: f64| vals[((vals.len() - 1) as f64 * p).round() as usize] as f64;
+        let med = q(0.5);
+        let mid = steps.len() / 2;
+        let step_median = *steps.select_nth_unstable_by(mid, f32::total_cmp).1 as f64;
+        // |difference of two pixels| has median 0.954·σ·√2.
+        let noise = (step_median / (0.954 * std::f64::consts::SQRT_2)).max(0.5);
+        let (dark, bright) = (med - q(0.003), q(0.997) - med);
+        if dark > 8.0 * noise && dark > 2.0 * bright {
+            votes -= 1;
+        } else if bright > 8.0 * noise && bright > 2.0 * dark {
+            votes += 1;
+        }
+    }
+    votes < 0
+}
+
+/// A frame source whose frames come out normalised by a backdrop.
+pub struct Normalised<'a> {
+    pub inner: &'a mut dyn FrameSource,
+    pub backdrop: Backdrop,
+}
+
+impl FrameSource for Normalised<'_> {
+    fn source(&self) -> Source {
+        self.inner.source()
+    }
+    fn len(&self) -> usize {
+        self.inner.len()
+    }
+    fn meta(&self, i: usize) -> FrameMeta {
+        self.inner.meta(i)
+    }
+    fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
+        self.inner.read(i, img)?;
+        self.backdrop.apply(img);
+        Ok(())
+    }
+    fn frames_dropped(&self) -> u64 {
+        self.inner.frames_dropped()
+    }
+    fn dimensions(&self) -> (u32, u32) {
+        self.inner.dimensions()
+    }
+    fn warnings(&self) -> Vec<String> {
+        let mut w = self.inner.warnings();
+        w.extend(self.backdrop.warnings());
+        w
+    }
+    fn recorded_config(&self) -> Option<&Config> {
+        self.inner.recorded_config()
+    }
+}
