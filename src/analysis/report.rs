@@ -71,6 +71,23 @@ pub struct Spheres {
     pub b: SphereResult,
 }
 
+/// One sphere's spin change as its markers show it and as the contact impulse implies it
+/// (physics.md §8).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct SpinCheck {
+    /// ω after − ω before from the markers, rad/s (null where either was not measured).
+    pub delta_spin_markers_rad_s: Option<Vector>,
+    /// (1/(K r)) n × Δv, rad/s.
+    pub delta_spin_impulse_rad_s: Vector,
+    /// χ² of their difference over their combined covariance (null without both).
+    pub chi2: Option<f64>,
+    pub dof: u32,
+    /// Where `spin_post_rad_s` comes from: "markers and impulse", "impulse", or "markers".
+    pub spin_post_from: String,
+    /// The factor both spins' uncertainties were inflated by (1 where the check passed).
+    pub uncertainty_inflated_by: f64,
+}
+
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct SphereResult {
     /// Centre at the impact time from the pre-impact ballistic fit, mm (absent from reports
@@ -84,6 +101,10 @@ pub struct SphereResult {
     pub spin_post_rad_s: Option<Vector>,
     /// Measured silhouette diameter per view, px (median over frames, with its spread).
     pub diameter_px: ViewValues,
+    /// The impulse–spin cross-check (absent from reports written before it was added, and
+    /// where the velocities are 2-D).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spin_check: Option<SpinCheck>,
     /// Markers tracked, per frame of `tracks` (empty until marker tracking exists).
     pub markers_tracked: Vec<u32>,
 }

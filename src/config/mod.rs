@@ -270,6 +270,8 @@ pub struct SphereOverride {
 pub struct SpheresConfig {
     pub diameter_mm: f64,
     pub mass_g: f64,
+    /// K in I = K m r²: 2/5 for solid spheres (the impulse–spin check, physics.md §8).
+    pub inertia_factor: f64,
     pub material: Option<String>,
     pub a: Option<SphereOverride>,
     pub b: Option<SphereOverride>,
@@ -280,6 +282,7 @@ impl Default for SpheresConfig {
         SpheresConfig {
             diameter_mm: 6.35,
             mass_g: 0.295,
+            inertia_factor: 0.4,
             material: None,
             a: None,
             b: None,

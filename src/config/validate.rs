@@ -184,6 +184,12 @@ impl Config {
             pos(&format!("spheres.{which}.diameter_mm"), d)?;
             pos(&format!("spheres.{which}.mass_g"), m)?;
         }
+        let k = self.spheres.inertia_factor;
+        if !(k.is_finite() && k > 0.0 && k <= 2.0 / 3.0) {
+            return Err(format!(
+                "spheres.inertia_factor: {k} is out of range, expected above 0 and at most 2/3 (a thin shell; 2/5 for a solid sphere)"
+            ));
+        }
         let a = &self.analysis;
         if a.min_frames_per_side < 2 {
             return Err(format!(

@@ -1,0 +1,285 @@
+//! The impulse–spin cross-check (physics.md §8): for rigid spheres the contact impulse that
+//! changes the velocities also fixes the change of spin, Δω_a = (1/(K r_a)) n × Δv_a and
+//! Δω_b = (1/(K r_b)) (−n) × Δv_b (n from a to b, I = K m r²). The velocities are measured far
+//! more precisely than the spins, so each sphere's marker-measured Δω is checked against the
+//! impulse's (χ², 3 degrees of freedom); the post-impact spin is estimated from the markers and
+//! from the pre-impact spin plus the impulse together (inverse-covariance weighted), or from the
+//! latter alone where the markers after the impact fail (and the pre-impact spin from the
+//! post-impact one where they fail before). A sphere whose check fails beyond 3σ has both its
+//! spins' uncertainties inflated by √(χ²/3), with a warning: a spin 20σ from the truth is worse
+//! than one with an honest, larger σ.
+
+use super::kinematics::V3;
+use super::report::{Estimate, SpinCheck};
+use super::rotation::SpinFit;
+use nalgebra::Matrix3;
+
+/// χ² for 3 degrees of freedom beyond which the check fails: the 3σ (99.73 %) point.
+const CHI2_3SIGMA_3DOF: f64 = 14.16;
+
+/// What the velocities say about one sphere's change of spin.
+#[derive(Clone, Copy, Debug)]
+pub struct Impulse {
+    /// Δω the impulse implies, rad/s, and its covariance.
+    pub delta_omega: V3,
+    pub cov: Matrix3<f64>,
+}
+
+fn cross_matrix(v: V3) -> Matrix3<f64> {
+    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+/// The impulse's Δω, Δω = (1/(K r)) n × Δv, for a sphere of radius `radius_mm` whose velocity
+/// changed by `dv` (per-axis σ `dv_sigma`); `n_for_sphere` is the contact normal from this
+/// sphere towards the other (n for a, −n for b), with per-axis σ `n_sigma`.
+pub fn predicted(
+    n_for_sphere: V3,
+    n_sigma: V3,
+    dv: V3,
+    dv_sigma: V3,
+    radius_mm: f64,
+    k: f64,
+) -> Impulse {
+    let scale = 1.0 / (k * radius_mm);
+    let c_dv = Matrix3::from_diagonal(&dv_sigma.component_mul(&dv_sigma));
+    let c_n = Matrix3::from_diagonal(&n_sigma.component_mul(&n_sigma));
+    let nx = cross_matrix(n_for_sphere);
+    let dvx = cross_matrix(dv);
+    Impulse {
+        delta_omega: n_for_sphere.cross(&dv) * scale,
+        cov: (nx * c_dv * nx.transpose() + dvx * c_n * dvx.transpose()) * (scale * scale),
+    }
+}
+
+/// Frame indices used for the impulse's own error terms in `SpinFit::frame_influence`: each
+/// is an independent source, like a frame, and must not collide with a real frame.
+fn synthetic_frame(sphere: usize, column: usize) -> usize {
+    usize::MAX - 8 * sphere - column
+}
+
+/// The columns of a covariance's Cholesky factor (C = Σ l lᵀ), or of its diagonal's square root
+/// where it is not positive definite.
+fn factor(c: &Matrix3<f64>) -> [V3; 3] {
+    match c.cholesky() {
+        Some(ch) => {
+            let l = ch.l();
+            [0, 1, 2].map(|i| V3::new(l[(0, i)], l[(1, i)], l[(2, i)]))
+        }
+        None => [0, 1, 2].map(|i| {
+            let mut v = V3::zeros();
+            v[i] = c[(i, i)].max(0.0).sqrt();
+            v
+        }),
+    }
+}
+
+fn scaled(f: &SpinFit, by: f64) -> SpinFit {
+    SpinFit {
+        omega: f.omega,
+        cov: f.cov * (by * by),
+        pairs: f.pairs,
+        frame_influence: f
+            .frame_influence
+            .iter()
+            .map(|(k, d)| (*k, d * by))
+            .collect(),
+    }
+}
+
+/// `m·ω` of a fit as a fit: influences mapped by `m`.
+fn mapped(f: &SpinFit, m: &Matrix3<f64>) -> Vec<(usize, V3)> {
+    f.frame_influence.iter().map(|(k, d)| (*k, m * d)).collect()
+}
+
+/// Reconciles one sphere's pre- and post-impact spin fits with its impulse. Returns the new
+/// pair, the check for the report, and a warning where there is one.
+pub fn reconcile(
+    sphere: usize,
+    pre: Option<&SpinFit>,
+    post: Option<&SpinFit>,
+    impulse: &Impulse,
+) -> (Option<SpinFit>, Option<SpinFit>, SpinCheck, Option<String>) {
+    let name = ["a", "b"][sphere];
+    let extra: Vec<(usize, V3)> = factor(&impulse.cov)
+        .iter()
+        .enumerate()
+        .map(|(i, l)| (synthetic_frame(sphere, i), *l))
+        .collect();
+    let est = |v: V3, c: &Matrix3<f64>| Estimate {
+        value: [v.x, v.y, v.z],
+        uncertainty: [0, 1, 2].map(|i| c[(i, i)].max(0.0).sqrt()),
+    };
+    let mut check = SpinCheck {
+        delta_spin_markers_rad_s: None,
+        delta_spin_impulse_rad_s: est(impulse.delta_omega, &impulse.cov),
+        chi2: None,
+        dof: 3,
+        spin_post_from: "markers".into(),
+        uncertainty_inflated_by: 1.0,
+    };
+    match (pre, post) {
+        (Some(pre), Some(post)) => {
+            let d = post.omega - pre.omega;
+            let c_meas = pre.cov + post.cov;
+            check.delta_spin_markers_rad_s = Some(est(d, &c_meas));
+            let r = d - impulse.delta_omega;
+            let chi2 = (c_meas + impulse.cov)
+                .try_inverse()
+                .map(|w| (r.transpose() * w * r)[(0, 0)]);
+            check.chi2 = chi2;
+            let mut warning = None;
+            let (pre, post) = match chi2 {
+                Some(x) if x > CHI2_3SIGMA_3DOF => {
+                    let by = (x / 3.0).sqrt();
+                    check.uncertainty_inflated_by = by;
+                    warning = Some(format!(
+                        "sphere {name}: the spin change its markers show disagrees with the one the impulse implies (χ² = {x:.1} for 3 degrees of freedom, beyond 3σ): both its spins' uncertainties are inflated ×{by:.1}"
+                    ));
+                    (scaled(pre, by), scaled(post, by))
+                }
+                _ => (pre.clone(), post.clone()),
+            };
+            // Two estimates of ω after: the markers', and ω before plus the impulse's Δω.
+            let c1 = post.cov;
+            let c2 = pre.cov + impulse.cov;
+            let combined = c1.try_inverse().zip(c2.try_inverse());
+            let Some((w1, w2)) = combined else {
+                return (Some(pre), Some(post), check, warning);
+            };
+            let Some(sum_inv) = (w1 + w2).try_inverse() else {
+                return (Some(pre), Some(post), check, warning);
+            };
+            let a = sum_inv * w1;
+            let b = Matrix3::identity() - a;
+            let omega = a * post.omega + b * (pre.omega + impulse.delta_omega);
+            let mut influence = mapped(&post, &a);
+            for (k, d) in mapped(&pre, &b) {
+                match influence.iter_mut().find(|(f, _)| *f == k) {
+                    Some((_, e)) => *e += d,
+                    None => influence.push((k, d)),
+                }
+            }
+            influence.extend(extra.iter().map(|(k, l)| (*k, b * l)));
+            let cov = a * c1 * a.transpose() + b * c2 * b.transpose();
+            check.spin_post_from = "markers and impulse".into();
+            let post = SpinFit {
+                omega,
+                cov,
+                pairs: post.pairs,
+                frame_influence: influence,
+            };
+            (Some(pre), Some(post), check, warning)
+        }
+        (Some(pre), None) => {
+            let mut influence = pre.frame_influence.clone();
+            influence.extend(extra);
+            check.spin_post_from = "impulse".into();
+            let post = SpinFit {
+                omega: pre.omega + impulse.delta_omega,
+                cov: pre.cov + impulse.cov,
+                pairs: 0,
+                frame_influence: influence,
+            };
+            let warning = format!(
+                "sphere {name}: no markers tracked after the impact; its spin after is the spin before plus the change the impulse implies"
+            );
+            (Some(pre.clone()), Some(post), check, Some(warning))
+        }
+        (None, Some(post)) => {
+            let mut influence = post.frame_influence.clone();
+            influence.extend(extra.iter().map(|(k, l)| (*k, -l)));
+            check.spin_post_from = "markers (the spin before from the impulse)".into();
+            let pre = SpinFit {
+                omega: post.omega - impulse.delta_omega,
+                cov: post.cov + impulse.cov,
+                pairs: 0,
+                frame_influence: influence,
+            };
+            let warning = format!(
+                "sphere {name}: no markers tracked before the impact; its spin before is the spin after minus the change the impulse implies"
+            );
+            (Some(pre), Some(post.clone()), check, Some(warning))
+        }
+        (None, None) => {
+            check.spin_post_from = "not measured".into();
+            (None, None, check, None)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fit(omega: V3, sigma: f64, frame: usize) -> SpinFit {
+        SpinFit {
+            omega,
+            cov: Matrix3::identity() * sigma * sigma,
+            pairs: 5,
+            frame_influence: vec![
+                (frame, V3::new(sigma, 0.0, 0.0)),
+                (frame + 1, V3::new(0.0, sigma, 0.0)),
+                (frame + 2, V3::new(0.0, 0.0, sigma)),
+            ],
+        }
+    }
+
+    /// A rolling-free glancing impulse: n = x, Δv along y spins the sphere about z.
+    #[test]
+    fn the_impulse_predicts_the_spin_change_and_a_wrong_one_is_inflated() {
+        let imp = predicted(
+            V3::x(),
+            V3::repeat(1e-3),
+            V3::new(0.0, 400.0, 0.0),
+            V3::repeat(1.0),
+            3.175,
+            0.4,
+        );
+        // n × Δv = x × 400 y = 400 z; / (0.4 · 3.175) = 314.96 rad/s.
+        assert!((imp.delta_omega - V3::new(0.0, 0.0, 314.96)).norm() < 0.01);
+        let pre = fit(V3::new(10.0, -20.0, 30.0), 5.0, 10);
+        let good = fit(
+            pre.omega + imp.delta_omega + V3::new(2.0, -3.0, 1.0),
+            5.0,
+            40,
+        );
+        let (_, post, check, warn) = reconcile(0, Some(&pre), Some(&good), &imp);
+        assert!(warn.is_none() && check.chi2.is_some_and(|x| x < 14.16));
+        let post = post.expect("combined");
+        assert!(
+            post.cov[(2, 2)] < good.cov[(2, 2)],
+            "two estimates beat one"
+        );
+        // The z spin's sign flipped, as a marker mismatch does: caught and inflated.
+        let flipped = fit(V3::new(10.0, -20.0, -300.0), 5.0, 40);
+        let (pre2, post2, check, warn) = reconcile(0, Some(&pre), Some(&flipped), &imp);
+        let x = check.chi2.expect("chi2");
+        assert!(x > 14.16 && warn.is_some(), "χ² {x}");
+        let post2 = post2.expect("post");
+        let pre2 = pre2.expect("pre");
+        assert!(pre2.cov[(0, 0)] > 10.0 * pre.cov[(0, 0)]);
+        let err = (post2.omega.z - (pre.omega.z + imp.delta_omega.z)).abs();
+        assert!(
+            err / post2.cov[(2, 2)].sqrt() < 5.0,
+            "within 5σ after inflation"
+        );
+    }
+
+    #[test]
+    fn without_markers_after_the_spin_after_comes_from_the_impulse() {
+        let imp = predicted(
+            V3::x(),
+            V3::zeros(),
+            V3::new(0.0, 400.0, 0.0),
+            V3::repeat(1.0),
+            3.175,
+            0.4,
+        );
+        let pre = fit(V3::new(1.0, 2.0, 3.0), 5.0, 10);
+        let (_, post, check, warn) = reconcile(1, Some(&pre), None, &imp);
+        let post = post.expect("from the impulse");
+        assert_eq!(check.spin_post_from, "impulse");
+        assert!((post.omega - (pre.omega + imp.delta_omega)).norm() < 1e-9);
+        assert!(warn.is_some_and(|w| w.contains("sphere b")));
+    }
+}
