@@ -139,6 +139,7 @@ pub fn robust_fit(points: &[[f64; 2]], oversampling: f64) -> Option<CircleFit> {
         points_used: keep.len(),
         points_total: points.len(),
         arc_sectors: sectors_covered(&keep, c),
+        grey_levels: false,
     })
 }
 
@@ -348,6 +349,7 @@ pub fn fit_fixed_radius(
             points_used: keep.len(),
             points_total: points.len(),
             arc_sectors: sectors_covered(&keep, c),
+            grey_levels: false,
         });
         let limit = (3.0 * s2.sqrt()).max(0.1);
         let before = keep.len();

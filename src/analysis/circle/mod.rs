@@ -36,6 +36,10 @@ pub struct CircleFit {
     pub points_total: usize,
     /// 10° sectors (of 36) the points used go round (`sectors_covered`).
     pub arc_sectors: usize,
+    /// Fitted on the grey levels (`profile`), not on edge points alone: a fit of the disc's
+    /// whole model, whose own residuals say whether it is one circle (a shiny or side-lit
+    /// sphere's edge points agree less, because one level does not suit its whole rim).
+    pub grey_levels: bool,
 }
 
 /// Refines a rough centre to a sub-pixel circle fit: edge points first (`fit_edges`), then the

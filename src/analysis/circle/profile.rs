@@ -546,6 +546,7 @@ where
                 cov[(o + 1, o + 1)].max(0.0).sqrt(),
             ],
             radius_sigma: cov[(o + 2, o + 2)].max(0.0).sqrt(),
+            grey_levels: true,
             ..**st
         };
     }

@@ -60,6 +60,7 @@ fn fit_pair_shared_radius(
         points_used: pts.len(),
         points_total: total,
         arc_sectors: sectors_covered(pts, [p[2 * k], p[2 * k + 1]]),
+        grey_levels: false,
     };
     Some([
         circle(0, a, start[0].points_total),

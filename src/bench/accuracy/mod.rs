@@ -149,7 +149,8 @@ pub struct CaseResult {
     pub true_branch: String,
     /// The look family the case was drawn from ("default" without one).
     pub look_family: String,
-    /// Per measured centre (sphere, view, frame): estimate − truth along u and v, px.
+    /// Per measured centre (sphere, view, frame) where both spheres are wholly in the view and
+    /// apart: estimate − truth along u and v, px.
     pub centre_err_uv: Vec<[f64; 2]>,
     /// Frames where both spheres were wholly in a view and apart (by the truth), and of those
     /// the ones where both were measured there.
@@ -269,6 +270,30 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
             }
         }
     }
+    // Whether, by the truth, both discs lie wholly inside view `view`'s region with a gap of
+    // at least a pixel between them: where the goals ask for both spheres measured, and for
+    // the centres' accuracy.
+    let clear = |tf: &Value, view: &analysis::geometry::View| -> bool {
+        let disc = |name: &str| {
+            let t = &tf["spheres"][name]["views"][view.kind.name()];
+            Some((
+                t["centre_px"][0].as_f64()?,
+                t["centre_px"][1].as_f64()?,
+                t["diameter_px"].as_f64()? / 2.0,
+            ))
+        };
+        let (Some(a), Some(b)) = (disc("a"), disc("b")) else {
+            return false;
+        };
+        let [rx, ry, rw, rh] = view.region.map(|x| x as f64);
+        let inside = |d: (f64, f64, f64)| {
+            d.0 - d.2 > rx + 1.0
+                && d.0 + d.2 < rx + rw - 2.0
+                && d.1 - d.2 > ry + 1.0
+                && d.1 + d.2 < ry + rh - 2.0
+        };
+        inside(a) && inside(b) && (a.0 - b.0).hypot(a.1 - b.1) > a.2 + b.2 + 1.0
+    };
     // Centres against the truth, per frame and view.
     let frames: HashMap<u64, &Value> = truth["frames"]
         .as_array()
@@ -291,8 +316,10 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
                 };
                 out.centre_err_px
                     .push((m.centre_px[0] - tu).hypot(m.centre_px[1] - tv));
-                out.centre_err_uv
-                    .push([m.centre_px[0] - tu, m.centre_px[1] - tv]);
+                if clear(tf, view) {
+                    out.centre_err_uv
+                        .push([m.centre_px[0] - tu, m.centre_px[1] - tv]);
+                }
                 let sphere = &tf["spheres"][name];
                 let c = v3(&sphere["centre_mm"]);
                 let r_px = m.diameter_px / 2.0;
@@ -335,32 +362,12 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
             }
         }
     }
-    // Detection rate: frames where, by the truth, both discs lie wholly inside a view's region
-    // with a gap of at least a pixel between them, and whether both were measured there.
+    // Detection rate where both are wholly in a view and apart.
     let measured: HashMap<u64, &analysis::tracking::FrameObs> =
         details.obs.iter().map(|f| (f.frame_id, f)).collect();
     for (id, tf) in &frames {
         for (vi, view) in details.views.iter().enumerate() {
-            let disc = |name: &str| {
-                let t = &tf["spheres"][name]["views"][view.kind.name()];
-                Some((
-                    t["centre_px"][0].as_f64()?,
-                    t["centre_px"][1].as_f64()?,
-                    t["diameter_px"].as_f64()? / 2.0,
-                ))
-            };
-            let (Some(a), Some(b)) = (disc("a"), disc("b")) else {
-                continue;
-            };
-            let [rx, ry, rw, rh] = view.region.map(|x| x as f64);
-            let inside = |d: (f64, f64, f64)| {
-                d.0 - d.2 > rx + 1.0
-                    && d.0 + d.2 < rx + rw - 2.0
-                    && d.1 - d.2 > ry + 1.0
-                    && d.1 + d.2 < ry + rh - 2.0
-            };
-            let apart = (a.0 - b.0).hypot(a.1 - b.1) > a.2 + b.2 + 1.0;
-            if !(inside(a) && inside(b) && apart) {
+            if !clear(tf, view) {
                 continue;
             }
             out.apart_frames += 1;

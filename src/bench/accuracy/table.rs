@@ -174,7 +174,7 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
     }
     let _ = writeln!(
         s,
-        "\ncentre RMS: {:.4} px (thesis integer centres {:.4} px)",
+        "\ncentre RMS, every measured centre (discs cut by a view's border included): {:.4} px (thesis integer centres {:.4} px)",
         rms(&all(&|r| r.centre_err_px.clone())),
         rms(&all(&|r| r.thesis_centre_err_px.clone()))
     );
@@ -317,7 +317,7 @@ pub(super) fn by_look(results: &[(Case, CaseResult)]) -> String {
     families.dedup();
     let _ = writeln!(
         s,
-        "\nper look family (centre RMS and bias over every measured centre; detection: frames with both spheres wholly in a view and apart; z = error/σ over e, ψ, β, v, ω):"
+        "\nper look family (centre RMS and bias, and detection, over the frames where both spheres are wholly in a view and apart; z = error/σ over e, ψ, β, v, ω):"
     );
     let _ = writeln!(
         s,
