@@ -234,3 +234,131 @@ impl FrameSource for Normalised<'_> {
         self.inner.recorded_config()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::geometry::ViewKind;
+
+    /// Frames held in memory: `frames[k]` is row-major grey levels.
+    struct Frames {
+        w: usize,
+        h: usize,
+        frames: Vec<Vec<f32>>,
+    }
+
+    impl FrameSource for Frames {
+        fn source(&self) -> Source {
+            Source {
+                kind: "test".into(),
+                name: "frames".into(),
+                frames: self.frames.len() as u64,
+                frame_rate_hz: 1000.0,
+                timestamps: "frame number".into(),
+            }
+        }
+        fn len(&self) -> usize {
+            self.frames.len()
+        }
+        fn meta(&self, i: usize) -> FrameMeta {
+            FrameMeta {
+                frame_id: i as u64,
+                timestamp_ns: i as u64 * 1_000_000,
+            }
+        }
+        fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
+            img.width = self.w;
+            img.height = self.h;
+            img.data.clone_from(&self.frames[i]);
+            Ok(())
+        }
+        fn frames_dropped(&self) -> u64 {
+            0
+        }
+        fn dimensions(&self) -> (u32, u32) {
+            (self.w as u32, self.h as u32)
+        }
+        fn warnings(&self) -> Vec<String> {
+            Vec::new()
+        }
+    }
+
+    fn view(w: u32, h: u32) -> View {
+        let g = crate::config::ViewGeometry {
+            region: [0, 0, w, h],
+            px_per_mm: 2.0,
+            origin_px: [0.0, 0.0],
+            u_axis: "+x".into(),
+            v_axis: "-y".into(),
+        };
+        View::from_config(ViewKind::Direct, &g)
+    }
+
+    /// A view with a bright static bar (a ruler), a smooth gradient and a disc crossing it,
+    /// `ground` and `disc` the levels: frame k has the disc at u = 8 + 3k.
+    fn recording(ground: f32, disc: f32, bar: f32) -> Frames {
+        let (w, h) = (96, 32);
+        let frames = (0..30)
+            .map(|k| {
+                let cu = 8.0 + 3.0 * k as f32;
+                (0..w * h)
+                    .map(|i| {
+                        let (u, v) = ((i % w) as f32, (i / w) as f32);
+                        let mut g = ground + 0.1 * u;
+                        if (26.0..30.0).contains(&v) {
+                            g = bar;
+                        }
+                        if (u - cu).hypot(v - 12.0) < 6.0 {
+                            g = disc;
+                        }
+                        // Deterministic "noise", ±1.
+                        g + ((i * 7919 + k * 104_729) % 3) as f32 - 1.0
+                    })
+                    .collect()
+            })
+            .collect();
+        Frames { w, h, frames }
+    }
+
+    #[test]
+    fn static_clutter_is_removed_and_the_moving_disc_stays() {
+        let mut src = recording(20.0, 180.0, 160.0);
+        let views = [view(96, 32)];
+        let b = Backdrop::estimate(&mut src, &views).expect("estimate");
+        assert!(!b.views[0].dark_spheres);
+        let mut img = GreyImage::new();
+        src.read(10, &mut img).expect("read");
+        b.apply(&mut img);
+        // The ruler and the gradient are gone: within the noise of the ground's level.
+        let level = b.views[0].level;
+        for u in [5, 40, 90] {
+            assert!(
+                (img.at(u, 28) - level).abs() < 3.0,
+                "ruler at u {u}: {}",
+                img.at(u, 28)
+            );
+            assert!((img.at(u, 2) - level).abs() < 3.0, "gradient at u {u}");
+        }
+        // The disc (at u = 38 in frame 10) is still ~160 above its ground.
+        assert!(img.at(38, 12) - level > 140.0);
+        assert!(b.warnings().is_empty());
+    }
+
+    #[test]
+    fn a_backlit_view_is_inverted_and_said_so() {
+        let mut src = recording(200.0, 25.0, 60.0);
+        let views = [view(96, 32)];
+        let b = Backdrop::estimate(&mut src, &views).expect("estimate");
+        assert!(b.views[0].dark_spheres);
+        let mut img = GreyImage::new();
+        src.read(10, &mut img).expect("read");
+        b.apply(&mut img);
+        let level = b.views[0].level;
+        assert!(
+            img.at(38, 12) - level > 150.0,
+            "the dark disc comes out bright"
+        );
+        assert!((img.at(70, 28) - level).abs() < 3.0, "the dark bar is gone");
+        assert!(b.warnings()[0].contains("backlit"));
+    }
+}
