@@ -181,6 +181,7 @@ impl SimLab {
             "material": sc.material,
             "relay_events": self.relay_events(),
             "release_time_s": release,
+            "tube_exit_time_s": release.map(|r| r + sc.exit_tau_s),
             "impact": {
                 "time_s": impact_time,
                 "normal": o.map(|o| o.normal),

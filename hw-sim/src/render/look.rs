@@ -31,6 +31,8 @@ pub(super) struct LookState {
     blurred: Vec<f32>,
     /// The tube exits the backdrop was drawn for.
     tubes: Option<[(V3, V3); 2]>,
+    /// The tubes' outer radius, mm.
+    tube_radius_mm: f64,
 }
 
 impl LookState {
@@ -76,6 +78,11 @@ impl LookState {
             sharp: Vec::new(),
             blurred: Vec::new(),
             tubes: None,
+            tube_radius_mm: scene.spheres[0]
+                .diameter_mm
+                .max(scene.spheres[1].diameter_mm)
+                / 2.0
+                * TUBE_RADIUS_IN_SPHERE_RADII,
         };
         state.draw_backdrop(scene, cfg, None);
         state
@@ -175,6 +182,10 @@ impl LookState {
         let facing = V3::from(view.facing);
         let mut best: Option<(f64, V3, usize, &Pose)> = None;
         for (i, p) in pose.iter().enumerate() {
+            // A sphere still inside its (opaque) tube is not seen.
+            if self.inside_tube(&p.centre_mm) {
+                continue;
+            }
             let (cu, cv) = project(view, &p.centre_mm);
             let r_px = p.radius_mm * view.px_per_mm;
             let (du, dv) = (su - cu, sv - cv);
@@ -216,6 +227,19 @@ impl LookState {
             };
         }
         Some((grey, i, on_marker))
+    }
+
+    /// Whether a point lies inside one of the drawn tubes (within its radius of the axis,
+    /// between the exit and `TUBE_LENGTH_MM` up the tube).
+    fn inside_tube(&self, p: &V3) -> bool {
+        let Some(tubes) = self.tubes.filter(|_| self.look.tube_ends) else {
+            return false;
+        };
+        tubes.iter().any(|(exit, dir)| {
+            let along = (exit - p).dot(dir);
+            let radial = ((p - exit) + dir * along).norm();
+            along > 0.0 && along < TUBE_LENGTH_MM && radial < self.tube_radius_mm
+        })
     }
 
     pub(super) fn illum(&self, idx: usize) -> f64 {

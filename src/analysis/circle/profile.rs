@@ -9,9 +9,9 @@ use super::{CircleFit, DotMask, GreyImage, View};
 pub const PROFILE_BAND_PX: f64 = 2.5;
 
 /// The disc's centre and radius from the grey levels of every pixel near its edge, not from
-/// edge points: a model I = background + L((R − d)/s)·(a + b·x + c·x²) (L a logistic step of
-/// width s, x = R − d the depth inside the edge, the quadratic the shading's rise inwards),
-/// integrated over each pixel's area where the edge crosses it, is fitted by
+/// edge points: a model I = background + L((R − d)/s)·S (L a logistic step of width s, S the
+/// sphere's shading inside the edge, see `fit_grey_levels`), integrated over each pixel's
+/// area, is fitted by
 /// Levenberg–Marquardt, starting from the edge-point fit. Why: a threshold crossing
 /// uses two samples per ray, and the edge-point fit's centre scatters about three times the
 /// Cramér–Rao bound (physics.md §6), most of it pixel locking; the model fit uses all of the
@@ -29,8 +29,38 @@ pub fn profile_fit(
     let near_other = |u: f64, v: f64| {
         other.is_some_and(|(oc, or)| (u - oc[0]).hypot(v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
     };
-    let pixels = ring_pixels(img, view, &[start], dots, near_other)?;
-    let [fit] = fit_grey_levels::<11, 1>(&pixels, [start], background, Layering::Apart)?;
+    let pixels = ring_pixels(img, view, &[start], dots, near_other, 20)?;
+    let [fit] = fit_grey_levels::<11, 1>(&pixels, [start], background, Layering::Apart, None)?;
+    Some(fit)
+}
+
+/// `profile_fit` with the disc's radius held at `radius_px`: for a disc cut by the view's
+/// border, where the radius and the centre across the cut trade off (a free radius 0.5 px too
+/// small put such centres 0.9 px off).
+pub fn profile_fit_known_radius(
+    img: &GreyImage,
+    view: &View,
+    start: &CircleFit,
+    background: f64,
+    other: Option<([f64; 2], f64)>,
+    dots: &[DotMask],
+    radius_px: f64,
+) -> Option<CircleFit> {
+    let near_other = |u: f64, v: f64| {
+        other.is_some_and(|(oc, or)| (u - oc[0]).hypot(v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
+    };
+    let start = CircleFit {
+        radius: radius_px,
+        ..*start
+    };
+    let pixels = ring_pixels(img, view, &[&start], dots, near_other, 12)?;
+    let [fit] = fit_grey_levels::<11, 1>(
+        &pixels,
+        [&start],
+        background,
+        Layering::Apart,
+        Some(radius_px),
+    )?;
     Some(fit)
 }
 
@@ -54,8 +84,8 @@ pub fn profile_fit_pair(
     if apart < a.radius + b.radius - PAIR_OVERLAP_PX {
         return None;
     }
-    let pixels = ring_pixels(img, view, &starts, dots, |_, _| false)?;
-    fit_grey_levels::<21, 2>(&pixels, starts, background, Layering::Apart)
+    let pixels = ring_pixels(img, view, &starts, dots, |_, _| false, 20)?;
+    fit_grey_levels::<21, 2>(&pixels, starts, background, Layering::Apart, None)
 }
 
 /// Two discs of one silhouette, one partly hiding the other (the mirror after an oblique
@@ -83,7 +113,7 @@ pub fn profile_fit_behind(
     {
         return None;
     }
-    let pixels = ring_pixels(img, view, &starts, dots, |_, _| false)?;
+    let pixels = ring_pixels(img, view, &starts, dots, |_, _| false, 20)?;
     let shown: Vec<[f64; 2]> = pixels
         .iter()
         .filter(|q| {
@@ -95,7 +125,7 @@ pub fn profile_fit_behind(
     if sectors_covered(&shown, b.centre) < 12 {
         return None;
     }
-    fit_grey_levels::<21, 2>(&pixels, starts, background, Layering::InFront(front))
+    fit_grey_levels::<21, 2>(&pixels, starts, background, Layering::InFront(front), None)
 }
 
 /// Parameters per disc in `fit_grey_levels`: centre (2), radius, edge width, and the shading's
@@ -126,7 +156,7 @@ pub fn rings_meet(a: &CircleFit, b: &CircleFit) -> bool {
 }
 
 /// The pixels within `PROFILE_BAND_PX` of any of the discs' edges, inside the view, off the
-/// dots and not `excluded`; None unless each disc keeps 20 of its ring's 36 sectors and at
+/// dots and not `excluded`; None unless each disc keeps `min_sectors` of its ring's 36 sectors and at
 /// least 40 pixels.
 fn ring_pixels(
     img: &GreyImage,
@@ -134,6 +164,7 @@ fn ring_pixels(
     discs: &[&CircleFit],
     dots: &[DotMask],
     excluded: impl Fn(f64, f64) -> bool,
+    min_sectors: usize,
 ) -> Option<Vec<RingPixel>> {
     if img.width == 0 || img.height == 0 || discs.is_empty() {
         return None;
@@ -196,7 +227,7 @@ fn ring_pixels(
             .filter(|q| on_ring(d, q.u, q.v))
             .map(|q| [q.u, q.v])
             .collect();
-        if ring.len() < 40 || sectors_covered(&ring, d.centre) < 20 {
+        if ring.len() < 40 || sectors_covered(&ring, d.centre) < min_sectors {
             return None;
         }
     }
@@ -233,6 +264,7 @@ fn fit_grey_levels<const P: usize, const N: usize>(
     starts: [&CircleFit; N],
     background: f64,
     layering: Layering,
+    radius_px: Option<f64>,
 ) -> Option<[CircleFit; N]>
 where
     nalgebra::Const<P>: nalgebra::DimMin<nalgebra::Const<P>, Output = nalgebra::Const<P>>,
@@ -405,12 +437,26 @@ where
         }
         _ => None,
     };
+    // A lone disc of known radius (`radius_px`: one cut by the view's border, whose visible
+    // arc fixes its radius and its centre across the cut poorly together) is held at it the
+    // same way, as R − radius_px.
+    let tie = tie.or_else(|| radius_px.filter(|_| N == 1).map(|r| (usize::MAX, 3, r)));
     const TIE_WEIGHT: f64 = 1e6;
-    let tie_residual = |p: &Vp<P>| tie.map_or(0.0, |(rf, rb, k)| p[rb] - k * p[rf]);
+    let tie_residual = |p: &Vp<P>| {
+        tie.map_or(0.0, |(rf, rb, k)| {
+            if rf == usize::MAX {
+                p[rb] - k
+            } else {
+                p[rb] - k * p[rf]
+            }
+        })
+    };
     let tie_row = tie.map(|(rf, rb, k)| {
         let mut a = Vp::<P>::zeros();
         a[rb] = 1.0;
-        a[rf] = -k;
+        if rf != usize::MAX {
+            a[rf] = -k;
+        }
         a
     });
     let cost = |p: &Vp<P>, px: &[RingPixel], area: bool| -> f64 {

@@ -270,10 +270,18 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
             }
         }
     }
-    // Whether, by the truth, both discs lie wholly inside view `view`'s region with a gap of
-    // at least a pixel between them: where the goals ask for both spheres measured, and for
+    // Whether, by the truth, both spheres are out of their tubes and their discs lie wholly
+    // inside view `view`'s region with a gap of at least a pixel between them: where the goals ask for both spheres measured, and for
     // the centres' accuracy.
+    // Before the spheres leave their tubes they are not in free flight (and a rig's tubes
+    // hide them): those frames do not count.
+    let exit_s = truth["tube_exit_time_s"]
+        .as_f64()
+        .unwrap_or(f64::NEG_INFINITY);
     let clear = |tf: &Value, view: &analysis::geometry::View| -> bool {
+        if tf["time_s"].as_f64().is_none_or(|t| t < exit_s) {
+            return false;
+        }
         let disc = |name: &str| {
             let t = &tf["spheres"][name]["views"][view.kind.name()];
             Some((
