@@ -210,14 +210,21 @@ fn ring_pixels(
             {
                 continue;
             }
-            let near_edge = discs.iter().any(|d| {
-                ((uf - d.centre[0]).hypot(vf - d.centre[1]) - d.radius).abs() < EDGE_ZONE_PX
-            });
+            let to_edge = discs
+                .iter()
+                .map(|d| ((uf - d.centre[0]).hypot(vf - d.centre[1]) - d.radius).abs())
+                .fold(f64::INFINITY, f64::min);
             pixels.push(RingPixel {
                 u: uf,
                 v: vf,
                 grey: img.at(u, v) as f64,
-                near_edge,
+                area: if to_edge < EDGE_ZONE_PX {
+                    Area::Fine
+                } else if to_edge < PROFILE_BAND_PX + 0.1 {
+                    Area::Coarse
+                } else {
+                    Area::Centre
+                },
             });
         }
     }
@@ -237,21 +244,34 @@ fn ring_pixels(
 /// Where in a pixel the grey-level model is sampled to integrate it over the pixel's area,
 /// px from the pixel's centre (3 × 3 points: on noise-free renders 4 × 4 did no better).
 const SUBPIXEL_OFFSETS: [f64; 3] = [-1.0 / 3.0, 0.0, 1.0 / 3.0];
+/// The same, 2 × 2, where the model is smooth but not flat across the pixel.
+const SUBPIXEL_OFFSETS_COARSE: [f64; 2] = [-0.25, 0.25];
 
-/// Pixels whose centre lies within this of an edge are integrated over their area
-/// (`fit_grey_levels`), px: the whole band. A sphere lit from the side has a kink inside its
-/// edge where the lamp's light ends at the ambient floor, on one side only; sampling the
-/// model at the pixels' centres there moved the centre 0.015 px away from the lamp.
-const EDGE_ZONE_PX: f64 = PROFILE_BAND_PX + 0.1;
+/// Pixels whose centre lies within this of an edge are integrated over their area finely
+/// (`SUBPIXEL_OFFSETS`), px; the rest of the band coarsely. A sphere lit from the side has a
+/// kink inside its edge where the lamp's light ends at the ambient floor, on one side only;
+/// sampling the model at the pixels' centres there moved the centre 0.015 px away from the
+/// lamp.
+const EDGE_ZONE_PX: f64 = 1.0;
 
-/// One pixel of a ring: its centre (u, v), grey level, and whether an edge crosses it closely
-/// enough that its area is integrated.
+/// How a ring pixel's model is integrated over its area.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Area {
+    /// An edge crosses it: 3 × 3 samples.
+    Fine,
+    /// Inside the band: 2 × 2.
+    Coarse,
+    /// Its centre stands for it.
+    Centre,
+}
+
+/// One pixel of a ring: its centre (u, v), grey level, and how its area is integrated.
 #[derive(Clone, Copy, Debug)]
 struct RingPixel {
     u: f64,
     v: f64,
     grey: f64,
-    near_edge: bool,
+    area: Area,
 }
 
 /// Levenberg–Marquardt fit of `N` discs' grey-level model (see `profile_fit`) to `pixels`,
@@ -284,7 +304,8 @@ where
         for k in 0..N {
             let o = 1 + DISC_PARAMS * k;
             let (du, dv) = (u - p[o], v - p[o + 1]);
-            let d = du.hypot(dv).max(1e-9);
+            // √ rather than hypot: the hot path, with no risk of overflow at pixel scale.
+            let d = (du * du + dv * dv).sqrt().max(1e-9);
             let (cs, sn) = (du / d, dv / d);
             let x = p[o + 2] - d;
             let s = p[o + 3];
@@ -369,19 +390,21 @@ where
     // (noise-free renders). Away from the edge the image is smooth and the pixel's centre
     // stands for it.
     let eval = |p: &Vp<P>, px: &RingPixel, area: bool| -> (f64, Vp<P>) {
-        if !(area && px.near_edge) {
-            return at_point(p, px.u, px.v);
-        }
+        let offsets: &[f64] = match (area, px.area) {
+            (true, Area::Fine) => &SUBPIXEL_OFFSETS,
+            (true, Area::Coarse) => &SUBPIXEL_OFFSETS_COARSE,
+            _ => return at_point(p, px.u, px.v),
+        };
         let mut model = 0.0;
         let mut j = Vp::<P>::zeros();
-        for a in SUBPIXEL_OFFSETS {
-            for b in SUBPIXEL_OFFSETS {
+        for a in offsets {
+            for b in offsets {
                 let (m, jj) = at_point(p, px.u + a, px.v + b);
                 model += m;
                 j += jj;
             }
         }
-        let w = 1.0 / (SUBPIXEL_OFFSETS.len() * SUBPIXEL_OFFSETS.len()) as f64;
+        let w = 1.0 / (offsets.len() * offsets.len()) as f64;
         (model * w, j * w)
     };
     let mut p = Vp::<P>::zeros();
