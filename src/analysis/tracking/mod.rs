@@ -140,8 +140,79 @@ impl Tracker {
         if let Some((blob, lv)) = deferred.take() {
             self.label_by_secondary_x(cx, &blob, &lv, &mut spheres);
         }
+        self.check_primary_against_secondary(cx, &mut spheres);
         self.remember(cx, &spheres);
         spheres
+    }
+
+    /// Both views measure world x. Where the primary view labelled a and b without continuity
+    /// (after frames where their silhouettes merged: a contact normal out of its plane) and the
+    /// secondary view carried both through those frames, the secondary is right: if swapping
+    /// the primary's labels makes the two views' x agree several times better, they are
+    /// swapped. Spheres that graze past each other in one view were otherwise labelled by the
+    /// side each was on before, and the trajectories came out crossed.
+    fn check_primary_against_secondary(&mut self, cx: &FrameCtx, spheres: &mut Spheres) {
+        if cx.views.len() < 2 || self.memory[0].both_in_previous || !self.memory[1].both_in_previous
+        {
+            return;
+        }
+        let x = |vi: usize, s: usize| {
+            spheres[s][vi]
+                .as_ref()
+                .map(|m| world_x(&cx.views[vi], m.centre_px))
+        };
+        let (Some(sa), Some(sb)) = (x(1, 0), x(1, 1)) else {
+            return;
+        };
+        // One circle in the primary view where the secondary sees both closer in x than they
+        // are wide: the primary's silhouette may hold both, one partly hiding the other, and a
+        // circle fitted to it sits between them. It is not a measurement of either.
+        let contact_mm = 0.5 * (cx.cfg.spheres.sphere(0).0 + cx.cfg.spheres.sphere(1).0);
+        if x(0, 0).is_some() != x(0, 1).is_some() {
+            if (sa - sb).abs() < contact_mm {
+                for s in 0..2 {
+                    if spheres[s][0].take().is_some() {
+                        // Nor is it where this sphere was.
+                        let mem = &mut self.memory[0];
+                        if mem.history[s].last().is_some_and(|e| e.0 == cx.t) {
+                            mem.history[s].pop();
+                        }
+                        mem.last[s] = mem.history[s].last().map(|e| e.1);
+                        self.unmeasured.push(Unmeasured {
+                            frame: cx.i as u64,
+                            view: cx.views[0].kind.name().into(),
+                            reason: format!(
+                                "{}: one silhouette where the {} view sees both {:.2} mm apart in x: they may overlap here",
+                                ["a", "b"][s],
+                                cx.views[1].kind.name(),
+                                (sa - sb).abs()
+                            ),
+                        });
+                    }
+                }
+            }
+            return;
+        }
+        let (Some(pa), Some(pb)) = (x(0, 0), x(0, 1)) else {
+            return;
+        };
+        let straight = (pa - sa).abs() + (pb - sb).abs();
+        let swapped = (pa - sb).abs() + (pb - sa).abs();
+        if swapped * 3.0 >= straight {
+            return;
+        }
+        let (first, rest) = spheres.split_at_mut(1);
+        std::mem::swap(&mut first[0][0], &mut rest[0][0]);
+        let mem = &mut self.memory[0];
+        mem.last.swap(0, 1);
+        mem.radius.swap(0, 1);
+        let t = cx.t;
+        let (h0, h1) = mem.history.split_at_mut(1);
+        if let (Some(e0), Some(e1)) = (h0[0].last_mut(), h1[0].last_mut()) {
+            if e0.0 == t && e1.0 == t {
+                std::mem::swap(e0, e1);
+            }
+        }
     }
 
     /// One view of one frame: blobs, their a/b labels (by x from the primary view, continuity,
