@@ -295,7 +295,8 @@ where
     // Only a disc that hides another needs its step's own derivatives (hot path: every pixel,
     // nine times near the edge).
     let hiding = matches!(layering, Layering::InFront(_)) && N == 2;
-    let at_point = |p: &Vp<P>, u: f64, v: f64| -> (f64, Vp<P>) {
+    // `with_j`: the derivatives too (the LM's cost evaluations need the model only).
+    let at_point = |p: &Vp<P>, u: f64, v: f64, with_j: bool| -> (f64, Vp<P>) {
         // Per disc: its term l·inner, the term's derivatives, and l's own (for hiding).
         let mut term = [0.0; N];
         let mut d_term = [Vp::<P>::zeros(); N];
@@ -334,53 +335,59 @@ where
             let lit = if g > 0.0 { 1.0 } else { 0.0 };
             let b = p[o + 5];
             let inner = p[o + 4] + b * g.max(0.0) + p[o + 8] * cs + p[o + 9] * sn;
-            let dl_dx = l * (1.0 - l) / s;
-            let dl_ds = -l * (1.0 - l) * x / (s * s);
-            // dd/dcx = −cos θ, dd/dcy = −sin θ; d(cos θ)/dcx = −sin²θ/d, d(sin θ)/dcx =
-            // cos θ sin θ/d, and for cy the same turned by 90°.
-            let dg_dcx = -c1 / r - dnz_dd * cs;
-            let dg_dcy = -c2 / r - dnz_dd * sn;
-            let dg_dr = -(c1 * du + c2 * dv) / (r * r) + dnz_dr;
-            let di_dcx = b * lit * dg_dcx + (-p[o + 8] * sn * sn + p[o + 9] * cs * sn) / d;
-            let di_dcy = b * lit * dg_dcy + (p[o + 8] * cs * sn - p[o + 9] * cs * cs) / d;
-            let di_dr = b * lit * dg_dr;
-            let j = &mut d_term[k];
-            j[o] = dl_dx * cs * inner + l * di_dcx;
-            j[o + 1] = dl_dx * sn * inner + l * di_dcy;
-            j[o + 2] = dl_dx * inner + l * di_dr;
-            j[o + 3] = dl_ds * inner;
-            j[o + 4] = l;
-            j[o + 5] = l * g.max(0.0);
-            j[o + 6] = l * b * lit * du / r;
-            j[o + 7] = l * b * lit * dv / r;
-            j[o + 8] = l * cs;
-            j[o + 9] = l * sn;
-            if hiding {
-                let js = &mut d_step[k];
-                js[o] = dl_dx * cs;
-                js[o + 1] = dl_dx * sn;
-                js[o + 2] = dl_dx;
-                js[o + 3] = dl_ds;
+            if with_j {
+                let dl_dx = l * (1.0 - l) / s;
+                let dl_ds = -l * (1.0 - l) * x / (s * s);
+                // dd/dcx = −cos θ, dd/dcy = −sin θ; d(cos θ)/dcx = −sin²θ/d, d(sin θ)/dcx =
+                // cos θ sin θ/d, and for cy the same turned by 90°.
+                let dg_dcx = -c1 / r - dnz_dd * cs;
+                let dg_dcy = -c2 / r - dnz_dd * sn;
+                let dg_dr = -(c1 * du + c2 * dv) / (r * r) + dnz_dr;
+                let di_dcx = b * lit * dg_dcx + (-p[o + 8] * sn * sn + p[o + 9] * cs * sn) / d;
+                let di_dcy = b * lit * dg_dcy + (p[o + 8] * cs * sn - p[o + 9] * cs * cs) / d;
+                let di_dr = b * lit * dg_dr;
+                let j = &mut d_term[k];
+                j[o] = dl_dx * cs * inner + l * di_dcx;
+                j[o + 1] = dl_dx * sn * inner + l * di_dcy;
+                j[o + 2] = dl_dx * inner + l * di_dr;
+                j[o + 3] = dl_ds * inner;
+                j[o + 4] = l;
+                j[o + 5] = l * g.max(0.0);
+                j[o + 6] = l * b * lit * du / r;
+                j[o + 7] = l * b * lit * dv / r;
+                j[o + 8] = l * cs;
+                j[o + 9] = l * sn;
+                if hiding {
+                    let js = &mut d_step[k];
+                    js[o] = dl_dx * cs;
+                    js[o + 1] = dl_dx * sn;
+                    js[o + 2] = dl_dx;
+                    js[o + 3] = dl_ds;
+                }
             }
             term[k] = l * inner;
             step[k] = l;
         }
         let mut j = Vp::<P>::zeros();
-        j[0] = 1.0;
         let mut model = p[0];
         match layering {
             Layering::InFront(f) if N == 2 => {
                 let b = 1 - f;
                 model += term[f] + (1.0 - step[f]) * term[b];
-                j += d_term[f] - d_step[f] * term[b] + d_term[b] * (1.0 - step[f]);
+                if with_j {
+                    j += d_term[f] - d_step[f] * term[b] + d_term[b] * (1.0 - step[f]);
+                }
             }
             _ => {
                 for k in 0..N {
                     model += term[k];
-                    j += d_term[k];
+                    if with_j {
+                        j += d_term[k];
+                    }
                 }
             }
         }
+        j[0] = 1.0;
         (model, j)
     };
     // A pixel integrates the image over its area. Near the edge that matters: the edge's
@@ -389,24 +396,28 @@ where
     // whole ring but not round one with dots masked out, and moved the centre 0.005 px
     // (noise-free renders). Away from the edge the image is smooth and the pixel's centre
     // stands for it.
-    let eval = |p: &Vp<P>, px: &RingPixel, area: bool| -> (f64, Vp<P>) {
+    let eval_with = |p: &Vp<P>, px: &RingPixel, area: bool, with_j: bool| -> (f64, Vp<P>) {
         let offsets: &[f64] = match (area, px.area) {
             (true, Area::Fine) => &SUBPIXEL_OFFSETS,
             (true, Area::Coarse) => &SUBPIXEL_OFFSETS_COARSE,
-            _ => return at_point(p, px.u, px.v),
+            _ => return at_point(p, px.u, px.v, with_j),
         };
         let mut model = 0.0;
         let mut j = Vp::<P>::zeros();
         for a in offsets {
             for b in offsets {
-                let (m, jj) = at_point(p, px.u + a, px.v + b);
+                let (m, jj) = at_point(p, px.u + a, px.v + b, with_j);
                 model += m;
-                j += jj;
+                if with_j {
+                    j += jj;
+                }
             }
         }
         let w = 1.0 / (offsets.len() * offsets.len()) as f64;
         (model * w, j * w)
     };
+    let eval = |p: &Vp<P>, px: &RingPixel, area: bool| eval_with(p, px, area, true);
+    let value = |p: &Vp<P>, px: &RingPixel, area: bool| eval_with(p, px, area, false).0;
     let mut p = Vp::<P>::zeros();
     p[0] = background;
     for (k, st) in starts.iter().enumerate() {
@@ -484,7 +495,7 @@ where
     });
     let cost = |p: &Vp<P>, px: &[RingPixel], area: bool| -> f64 {
         px.iter()
-            .map(|q| (q.grey - eval(p, q, area).0).powi(2))
+            .map(|q| (q.grey - value(p, q, area)).powi(2))
             .sum::<f64>()
             + TIE_WEIGHT * tie_residual(p).powi(2)
     };
@@ -562,7 +573,7 @@ where
         // partly dot and only a little darker, so the neighbours of a rejected pixel go too.
         let res: Vec<f64> = keep
             .iter()
-            .map(|q| (q.grey - eval(&p, q, false).0).abs())
+            .map(|q| (q.grey - value(&p, q, false)).abs())
             .collect();
         let mut sorted = res.clone();
         sorted.sort_by(f64::total_cmp);
