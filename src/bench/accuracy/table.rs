@@ -75,8 +75,9 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
     );
     let _ = writeln!(
         s,
-        "{:>5} {:>6} {:>6} {:>4} {:>9} {:>7} {:>8} {:>7} {:>8} {:>8} {:>8} {:>7} {:>9}",
+        "{:>5} {:<10} {:>6} {:>6} {:>4} {:>9} {:>7} {:>8} {:>7} {:>8} {:>8} {:>8} {:>7} {:>9}",
         "seed",
+        "look",
         "tube°",
         "offset",
         "σ",
@@ -99,8 +100,9 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
         let worst_v = r.vel_rel.iter().copied().fold(0.0, f64::max);
         let _ = writeln!(
             s,
-            "{:>5} {:>6} {:>6} {:>4} {:>9} {:>7.3} {} {:>7.4} {} {} {} {:>7.3} {:>9.3}",
+            "{:>5} {:<10} {:>6} {:>6} {:>4} {:>9} {:>7.3} {} {:>7.4} {} {} {} {:>7.3} {:>9.3}",
             c.seed,
+            r.look_family,
             c.tube_angle_deg,
             c.impact_offset,
             c.noise_sigma_grey,
