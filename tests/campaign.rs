@@ -212,3 +212,42 @@ fn too_few_points_and_mixed_inputs_are_refused_clearly() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// The campaign on rigs that do not look like the simulator's default: a side-lit glass rig
+/// and a shiny (specular) teflon rig, each one look drawn from its family for the whole
+/// campaign, as a real rig keeps its lamps. e within 0.01, μ within 5 %, β0 within 0.05.
+#[test]
+fn sweeps_on_a_side_lit_and_a_shiny_rig_recover_their_materials() {
+    for (material, look, e0, mu0, beta00) in [
+        ("glass", "side_lit", 0.97, 0.092, 0.44),
+        ("teflon", "specular", 0.90, 0.10, 0.30),
+    ] {
+        let tmp = tempfile::tempdir().unwrap();
+        let cfg = Config::from_toml_str(
+            &format!("[sim]\nmaterial = \"{material}\"\nlook_family = \"{look}\"\nseed = 5\n"),
+            material,
+        )
+        .unwrap();
+        let offsets = [0.1, 0.2, 0.3, 0.45, 0.55, 0.65, 0.75, 0.85];
+        let (_, f) = campaign::sweep(
+            &cfg,
+            tmp.path(),
+            &[30.0, 45.0],
+            Some(&offsets),
+            1,
+            Arc::new(AtomicBool::new(false)),
+            &mut |_| {},
+        )
+        .unwrap();
+        let (e, mu, beta0) = (f.e.unwrap(), f.mu.unwrap(), f.beta0.unwrap());
+        assert!((e.value - e0).abs() < 0.01, "{material}, {look}: e {e:?}");
+        assert!(
+            (mu.value - mu0).abs() < 0.05 * mu0,
+            "{material}, {look}: mu {mu:?}"
+        );
+        assert!(
+            (beta0.value - beta00).abs() < 0.05,
+            "{material}, {look}: beta0 {beta0:?}"
+        );
+    }
+}
