@@ -23,6 +23,8 @@ use crate::session::FrameMeta;
 const SAMPLES: usize = 31;
 /// Fewer frames than this give no backdrop (a quantile of so few says little).
 pub const MIN_FRAMES: usize = 9;
+/// Memory the sampled frames may take, bytes.
+const MAX_SAMPLE_BYTES: usize = 256 << 20;
 /// The backdrop's quantile on the ground's side of the spheres.
 const GROUND_QUANTILE: f64 = 0.2;
 
@@ -50,7 +52,14 @@ impl Backdrop {
     /// Samples the recording and estimates each view's polarity and static backdrop.
     pub fn estimate(src: &mut dyn FrameSource, views: &[View]) -> Result<Backdrop, AnalysisError> {
         let n = src.len();
-        let k = n.min(SAMPLES);
+        // The samples are held at once as f32: at most `MAX_SAMPLE_BYTES` of them (for large
+        // frames, fewer samples; below `MIN_FRAMES`, the polarity only).
+        let (w, h) = src.dimensions();
+        let frame_bytes = (w as usize)
+            .saturating_mul(h as usize)
+            .saturating_mul(4)
+            .max(1);
+        let k = n.min(SAMPLES).min((MAX_SAMPLE_BYTES / frame_bytes).max(1));
         let mut frames: Vec<GreyImage> = Vec::with_capacity(k);
         for j in 0..k {
             // Evenly spread, first and last included.
