@@ -156,14 +156,7 @@ impl Renderer {
                 (rx + rw).min(self.scene.width) as i64 - 1,
                 (ry + rh).min(self.scene.height) as i64 - 1,
             );
-            let discs: Vec<(f64, f64, f64)> = poses
-                .iter()
-                .flat_map(|p| p.iter())
-                .map(|s| {
-                    let (u, v) = project(view, &s.centre_mm);
-                    (u, v, s.radius_mm * view.px_per_mm)
-                })
-                .collect();
+            let discs = discs_in(view, poses);
             // One box round every pose of both spheres when theirs overlap, else one each.
             let mut boxes: Vec<[i64; 4]> = Vec::new();
             for s in 0..2 {
@@ -280,15 +273,7 @@ impl Renderer {
         let ss = self.cfg.supersample.max(1) as usize;
         let ss_edge = (self.cfg.edge_supersample as usize).max(ss);
         let width = self.scene.width as usize;
-        // Projected centres and radii, px, of every sphere in every sub-exposure pose.
-        let discs: Vec<(f64, f64, f64)> = poses
-            .iter()
-            .flat_map(|p| p.iter())
-            .map(|s| {
-                let (u, v) = project(view, &s.centre_mm);
-                (u, v, s.radius_mm * view.px_per_mm)
-            })
-            .collect();
+        let discs = discs_in(view, poses);
         for (bi, b) in boxes.iter().enumerate() {
             for v in b.1..=b.3 {
                 for u in b.0..=b.2 {
@@ -433,6 +418,18 @@ enum Surface {
     Background,
     Sphere(usize),
     Marker(usize),
+}
+
+/// Projected centre and radius, px, of every sphere in every sub-exposure pose.
+fn discs_in(view: &ViewSpec, poses: &[[Pose; 2]]) -> Vec<(f64, f64, f64)> {
+    poses
+        .iter()
+        .flat_map(|p| p.iter())
+        .map(|s| {
+            let (u, v) = project(view, &s.centre_mm);
+            (u, v, s.radius_mm * view.px_per_mm)
+        })
+        .collect()
 }
 
 /// Image position of a world point in a view, px (full-frame coordinates).

@@ -26,12 +26,7 @@ pub fn profile_fit(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
 ) -> Option<CircleFit> {
-    let near_other = |u: f64, v: f64| {
-        other.is_some_and(|(oc, or)| (u - oc[0]).hypot(v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
-    };
-    let pixels = ring_pixels(img, view, &[start], dots, near_other, 20)?;
-    let [fit] = fit_grey_levels::<11, 1>(&pixels, [start], background, Layering::Apart, None)?;
-    Some(fit)
+    fit_one(img, view, start, background, other, dots, None)
 }
 
 /// `profile_fit` with the disc's radius held at `radius_px`: for a disc cut by the view's
@@ -46,21 +41,31 @@ pub fn profile_fit_known_radius(
     dots: &[DotMask],
     radius_px: f64,
 ) -> Option<CircleFit> {
+    fit_one(img, view, start, background, other, dots, Some(radius_px))
+}
+
+/// One disc's grey-level fit, its radius free or held at `radius_px` (then 12 of the ring's
+/// sectors suffice: the radius no longer needs the ring to go round).
+fn fit_one(
+    img: &GreyImage,
+    view: &View,
+    start: &CircleFit,
+    background: f64,
+    other: Option<([f64; 2], f64)>,
+    dots: &[DotMask],
+    radius_px: Option<f64>,
+) -> Option<CircleFit> {
     let near_other = |u: f64, v: f64| {
         other.is_some_and(|(oc, or)| (u - oc[0]).hypot(v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
     };
     let start = CircleFit {
-        radius: radius_px,
+        radius: radius_px.unwrap_or(start.radius),
         ..*start
     };
-    let pixels = ring_pixels(img, view, &[&start], dots, near_other, 12)?;
-    let [fit] = fit_grey_levels::<11, 1>(
-        &pixels,
-        [&start],
-        background,
-        Layering::Apart,
-        Some(radius_px),
-    )?;
+    let min_sectors = if radius_px.is_some() { 12 } else { 20 };
+    let pixels = ring_pixels(img, view, &[&start], dots, near_other, min_sectors)?;
+    let [fit] =
+        fit_grey_levels::<11, 1>(&pixels, [&start], background, Layering::Apart, radius_px)?;
     Some(fit)
 }
 
