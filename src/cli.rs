@@ -49,6 +49,20 @@ pub(crate) enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Find each view's map (scale, roll, the mirror's tilt) from a recording of a collision,
+    /// knowing only the sphere diameter, the frame rate and g: prints the [geometry] TOML with
+    /// each parameter's uncertainty, and draws the regions and axes on the impact frame (PNG).
+    Calibrate {
+        /// A session directory or a multi-page greyscale TIFF stack.
+        path: PathBuf,
+        /// The config giving the diameter, frame rate, g and the provisional geometry (regions,
+        /// rough scales, the mirror's side); a session uses its own without it.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Write the TOML here (and the PNG beside it, .png) instead of printing it.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Analyse a session, a multi-page greyscale TIFF recorded elsewhere, or (--tracks) centres
     /// digitised in other software.
     Analyze {

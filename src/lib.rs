@@ -4,6 +4,7 @@
 
 pub mod analysis;
 pub mod bench;
+pub mod calibrate;
 pub mod camera;
 pub mod campaign;
 pub mod config;

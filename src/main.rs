@@ -184,6 +184,21 @@ fn real_main(cli: Cli) -> Result<i32> {
             }
             Ok(0)
         }
+        Command::Calibrate { path, config, out } => {
+            let cfg = config.as_deref().map(Config::load).transpose()?;
+            let (cal, png) = impactcam::calibrate::calibrate_path(&path, cfg.as_ref())?;
+            let text = cal.toml();
+            match out {
+                Some(o) => {
+                    impactcam::session::write_atomic(&o, text.as_bytes())?;
+                    let p = o.with_extension("png");
+                    impactcam::session::write_atomic(&p, &png)?;
+                    println!("geometry    {}\nfigure      {}", o.display(), p.display());
+                }
+                None => print!("{text}"),
+            }
+            Ok(0)
+        }
         Command::Analyze {
             path,
             tracks,

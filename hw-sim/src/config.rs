@@ -79,6 +79,12 @@ pub struct LabConfig {
     pub mirror_scale_error: f64,
     /// The real mirror view is shifted by this much (u, v) from the configured origin, px.
     pub mirror_offset_error_px: [f64; 2],
+    /// The camera is turned about its optical axis by this much, deg (positive turns the image
+    /// from +u towards +v): every view's image rotates about the frame's centre.
+    pub camera_roll_deg: f64,
+    /// The mirror is turned away from 45° about the world x axis by this much, deg: the mirror
+    /// view turns by twice the angle (its v axis takes in world y).
+    pub mirror_tilt_deg: f64,
     /// How the rig looks (light, surface, paint, clutter, focus); absent = the original render.
     pub look: Option<Look>,
     /// Draw the look at random from this family and the seed (`Look::FAMILIES`, or "varied");
@@ -118,6 +124,8 @@ impl Default for LabConfig {
             pace: Pace::RealTime,
             mirror_scale_error: 0.0,
             mirror_offset_error_px: [0.0, 0.0],
+            camera_roll_deg: 0.0,
+            mirror_tilt_deg: 0.0,
             look: None,
             look_family: None,
         }
@@ -224,6 +232,8 @@ impl LabConfig {
         range("edge_supersample", self.edge_supersample as f64, 1.0, 32.0)?;
         range("drop_probability", self.drop_probability, 0.0, 0.5)?;
         range("mirror_scale_error", self.mirror_scale_error, -0.2, 0.2)?;
+        range("camera_roll_deg", self.camera_roll_deg, -10.0, 10.0)?;
+        range("mirror_tilt_deg", self.mirror_tilt_deg, -10.0, 10.0)?;
         range(
             "mirror_offset_error_px[0]",
             self.mirror_offset_error_px[0],
@@ -256,6 +266,43 @@ pub struct ViewSpec {
     /// World unit vector from the scene towards this view's (virtual) camera: the visible
     /// hemisphere.
     pub facing: [f64; 3],
+}
+
+impl ViewSpec {
+    /// [u, v] = M·p + origin_px, M in px per mm.
+    pub fn matrix_px_per_mm(&self) -> [[f64; 3]; 2] {
+        [
+            self.u_axis.map(|x| x * self.px_per_mm),
+            self.v_axis.map(|x| x * self.px_per_mm),
+        ]
+    }
+
+    /// Turns the view's camera about the world x axis by `angle` rad (a tilted mirror turns
+    /// its view by twice its own tilt); the world origin keeps its image.
+    pub fn turn_about_x(&mut self, angle: f64) {
+        if angle == 0.0 {
+            return;
+        }
+        let (s, c) = angle.sin_cos();
+        let turn = |a: [f64; 3]| [a[0], c * a[1] - s * a[2], s * a[1] + c * a[2]];
+        self.u_axis = turn(self.u_axis);
+        self.v_axis = turn(self.v_axis);
+        self.facing = turn(self.facing);
+    }
+
+    /// Rotates the view's image by `angle` rad about the image point `centre` (a camera rolled
+    /// about its optical axis): u' = c + R·(u − c), R = [[cos, −sin], [sin, cos]].
+    pub fn roll_about(&mut self, centre: [f64; 2], angle: f64) {
+        let (s, c) = angle.sin_cos();
+        let (ua, va) = (self.u_axis, self.v_axis);
+        self.u_axis = [0, 1, 2].map(|i| c * ua[i] - s * va[i]);
+        self.v_axis = [0, 1, 2].map(|i| s * ua[i] + c * va[i]);
+        let d = [self.origin_px[0] - centre[0], self.origin_px[1] - centre[1]];
+        self.origin_px = [
+            centre[0] + c * d[0] - s * d[1],
+            centre[1] + s * d[0] + c * d[1],
+        ];
+    }
 }
 
 #[derive(Clone, Debug, Serialize)]

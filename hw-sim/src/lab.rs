@@ -37,6 +37,16 @@ impl SimLab {
             v.px_per_mm *= 1.0 + cfg.mirror_scale_error;
             v.origin_px[0] += cfg.mirror_offset_error_px[0];
             v.origin_px[1] += cfg.mirror_offset_error_px[1];
+            v.turn_about_x(2.0 * cfg.mirror_tilt_deg.to_radians());
+        }
+        if cfg.camera_roll_deg != 0.0 {
+            let centre = [
+                (f64::from(scene.width) - 1.0) / 2.0,
+                (f64::from(scene.height) - 1.0) / 2.0,
+            ];
+            for v in scene.views.iter_mut() {
+                v.roll_about(centre, cfg.camera_roll_deg.to_radians());
+            }
         }
         let scenario = Scenario::new(&cfg, &scene.spheres)?;
         let clock = Arc::new(LabClock::new(cfg.pace));
@@ -200,6 +210,14 @@ impl SimLab {
         if let Some(look) = &self.cfg.look {
             truth["look"] = json!(look);
         }
+        // The exact map of every view as rendered: [u, v] = M·p + origin_px.
+        let maps: serde_json::Map<String, Value> = self
+            .scene
+            .views
+            .iter()
+            .map(|view| (view.name.clone(), json!({"matrix_px_per_mm": view.matrix_px_per_mm(), "origin_px": view.origin_px})))
+            .collect();
+        truth["geometry"] = Value::Object(maps);
         truth
     }
 }

@@ -293,13 +293,7 @@ mod tests {
     }
 
     fn view(w: u32, h: u32) -> View {
-        let g = crate::config::ViewGeometry {
-            region: [0, 0, w, h],
-            px_per_mm: 2.0,
-            origin_px: [0.0, 0.0],
-            u_axis: "+x".into(),
-            v_axis: "-y".into(),
-        };
+        let g = crate::config::ViewGeometry::shorthand([0, 0, w, h], 2.0, [0.0, 0.0], "+x", "-y");
         View::from_config(ViewKind::Direct, &g)
     }
 

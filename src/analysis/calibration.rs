@@ -1,17 +1,19 @@
-//! Mirror calibration: the mirror view's scale and offset refined from the x coordinate both
-//! views see, and the residuals of that shared coordinate.
+//! Mirror calibration and the geometry's checks: the mirror view's scale and offset refined
+//! from the x coordinate both views see; the residuals of that shared coordinate and how they
+//! follow y and z (a rolled view); free fall as each view measures it (a turned or mis-scaled
+//! view), with the warnings these give.
 
-use super::geometry::{View, ViewKind};
-use super::report::Calibration;
+use super::geometry::{View, ViewKind, V3};
+use super::report::{Calibration, FreeFall, Scalar};
 use super::tracking::FrameObs;
 
 /// Pairs (direct x, mirror x) in mm of every sphere measured in both views of a frame.
 pub(super) fn x_pairs(obs: &[FrameObs], views: &[View]) -> Option<Vec<(f64, f64)>> {
     let di = views.iter().position(|v| v.kind == ViewKind::Direct)?;
     let mi = views.iter().position(|v| v.kind == ViewKind::Mirror)?;
-    let x = |vi: usize, px: [f64; 2]| {
+    let x = |vi: usize, px: [f64; 2], near: Option<&super::geometry::V3>| {
         views[vi]
-            .unproject(px)
+            .unproject(px, near)
             .iter()
             .find(|(a, _)| *a == 0)
             .map(|(_, x)| *x)
@@ -20,10 +22,11 @@ pub(super) fn x_pairs(obs: &[FrameObs], views: &[View]) -> Option<Vec<(f64, f64)
         obs.iter()
             .flat_map(|f| {
                 (0..2).filter_map(move |s| {
-                    Some((f.spheres[s][di].as_ref()?, f.spheres[s][mi].as_ref()?))
+                    let near = f.position_mm[s].as_ref();
+                    let (d, m) = (f.spheres[s][di].as_ref()?, f.spheres[s][mi].as_ref()?);
+                    Some((x(di, d.centre_px, near)?, x(mi, m.centre_px, near)?))
                 })
             })
-            .filter_map(|(d, m)| Some((x(di, d.centre_px)?, x(mi, m.centre_px)?)))
             .collect(),
     )
 }
@@ -57,14 +60,14 @@ pub(super) fn calibrate_mirror(obs: &[FrameObs], views: &mut [View]) -> Option<C
     let sxy: f64 = pairs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
     let lo = pairs.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
     let hi = pairs.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
-    let refined = pairs.len() >= 10 && hi - lo >= 3.0 && sxx > 0.0;
+    let mut refined = pairs.len() >= 10 && hi - lo >= 3.0 && sxx > 0.0;
     let (mut mean_after, mut rms_after) = (mean_before, rms_before);
     if refined {
         let a = sxy / sxx;
         let b = my - a * mx;
-        let sign = views[mi].u_axis.x.signum();
-        views[mi].px_per_mm = a * config_scale;
-        views[mi].origin_px[0] = config_origin_u + sign * b * config_scale;
+        refined = views[mi].rescale(a, b);
+    }
+    if refined {
         let after = x_pairs(obs, views)?;
         (mean_after, rms_after) = residual_stats(&after);
     }
@@ -79,5 +82,180 @@ pub(super) fn calibrate_mirror(obs: &[FrameObs], views: &mut [View]) -> Option<C
         mirror_origin_u_px_refined: views[mi].origin_px[0],
         residual_mean_mm_after: mean_after,
         residual_rms_mm_after: rms_after,
+        residual_per_mm_of_y: None,
+        residual_per_mm_of_z: None,
+        free_fall: Vec::new(),
     })
+}
+
+/// Mirror x minus direct x against the world y and z of the same centre, with the refined
+/// geometry: [y slope, z slope], mm per mm, each with its σ (least squares with an intercept).
+pub(super) fn residual_slopes(obs: &[FrameObs], views: &[View]) -> Option<[Scalar; 2]> {
+    let di = views.iter().position(|v| v.kind == ViewKind::Direct)?;
+    let mi = views.iter().position(|v| v.kind == ViewKind::Mirror)?;
+    // (residual, y, z)
+    let rows: Vec<(f64, f64, f64)> = obs
+        .iter()
+        .flat_map(|f| {
+            (0..2).filter_map(move |s| {
+                let near = f.position_mm[s].as_ref();
+                let (d, m) = (f.spheres[s][di].as_ref()?, f.spheres[s][mi].as_ref()?);
+                let pd = views[di].solve(d.centre_px, near);
+                let pm = views[mi].solve(m.centre_px, near);
+                Some((pm.x - pd.x, pd.y, pm.z))
+            })
+        })
+        .collect();
+    if rows.len() < 10 {
+        return None;
+    }
+    let n = rows.len() as f64;
+    let mean = |k: fn(&(f64, f64, f64)) -> f64| rows.iter().map(k).sum::<f64>() / n;
+    let (mr, my, mz) = (mean(|r| r.0), mean(|r| r.1), mean(|r| r.2));
+    let mut ata = nalgebra::Matrix2::<f64>::zeros();
+    let mut atb = nalgebra::Vector2::<f64>::zeros();
+    for r in &rows {
+        let a = nalgebra::Vector2::new(r.1 - my, r.2 - mz);
+        ata += a * a.transpose();
+        atb += a * (r.0 - mr);
+    }
+    let inv = ata.try_inverse()?;
+    let c = inv * atb;
+    let ss: f64 = rows
+        .iter()
+        .map(|r| (r.0 - mr - c[0] * (r.1 - my) - c[1] * (r.2 - mz)).powi(2))
+        .sum();
+    let var = ss / (n - 3.0).max(1.0);
+    Some([0, 1].map(|i| Scalar {
+        value: c[i],
+        uncertainty: (var * inv[(i, i)]).max(0.0).sqrt(),
+    }))
+}
+
+/// Free fall as each view measures it: a parabola fitted to each of the view's two coordinates
+/// over each flight phase, the accelerations pooled over the phases (weights 1/σ²).
+pub(super) fn free_fall(
+    obs: &[FrameObs],
+    views: &[View],
+    phases: &[Vec<usize>; 4],
+    g: f64,
+) -> Vec<FreeFall> {
+    let mut out = Vec::new();
+    for (vi, view) in views.iter().enumerate() {
+        for (slot, &axis) in view.axes.iter().enumerate() {
+            let (mut wsum, mut wa) = (0.0, 0.0);
+            for (k, frames) in phases.iter().enumerate() {
+                let pts: Vec<(f64, f64)> = frames
+                    .iter()
+                    .filter_map(|&i| {
+                        let f = &obs[i];
+                        let m = f.spheres[k % 2][vi].as_ref()?;
+                        let near = f.position_mm[k % 2].as_ref();
+                        Some((f.time_s, view.unproject(m.centre_px, near)[slot].1))
+                    })
+                    .collect();
+                if let Some((a, sa)) = parabola_acceleration(&pts) {
+                    if sa > 0.0 && sa.is_finite() {
+                        wsum += 1.0 / (sa * sa);
+                        wa += a / (sa * sa);
+                    }
+                }
+            }
+            if wsum > 0.0 {
+                out.push(FreeFall {
+                    view: view.kind.name().into(),
+                    axis: ["x", "y", "z"][axis].into(),
+                    acceleration_mm_s2: Scalar {
+                        value: wa / wsum,
+                        uncertainty: wsum.recip().sqrt(),
+                    },
+                    expected_mm_s2: if axis == 1 { -g } else { 0.0 },
+                });
+            }
+        }
+    }
+    out
+}
+
+/// 2·c2 of y = c0 + c1·t + c2·t² and its σ from the residuals; None under 6 points.
+fn parabola_acceleration(pts: &[(f64, f64)]) -> Option<(f64, f64)> {
+    if pts.len() < 6 {
+        return None;
+    }
+    let t0 = pts.iter().map(|p| p.0).sum::<f64>() / pts.len() as f64;
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = V3::zeros();
+    for &(t, y) in pts {
+        let a = V3::new(1.0, t - t0, (t - t0).powi(2));
+        ata += a * a.transpose();
+        atb += a * y;
+    }
+    let inv = ata.try_inverse()?;
+    let c = inv * atb;
+    let ss: f64 = pts
+        .iter()
+        .map(|&(t, y)| (y - c[0] - c[1] * (t - t0) - c[2] * (t - t0).powi(2)).powi(2))
+        .sum();
+    let var = ss / (pts.len() as f64 - 3.0);
+    Some((2.0 * c[2], 2.0 * (var * inv[(2, 2)]).max(0.0).sqrt()))
+}
+
+/// The extent of world y and z over every centre the views measured, mm.
+pub(super) fn spans_y_z(obs: &[FrameObs], views: &[View]) -> [f64; 2] {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for f in obs {
+        for s in 0..2 {
+            for (v, m) in views.iter().zip(&f.spheres[s]) {
+                let Some(m) = m else { continue };
+                let p = v.solve(m.centre_px, f.position_mm[s].as_ref());
+                for &a in &v.axes {
+                    lo[a] = lo[a].min(p[a]);
+                    hi[a] = hi[a].max(p[a]);
+                }
+            }
+        }
+    }
+    [1, 2].map(|a| (hi[a] - lo[a]).max(0.0))
+}
+
+/// What the checks say about the configured geometry, in the lab's words. Quiet below what a
+/// right geometry shows (6σ, and an effect that matters: 0.02 mm over the span of y or z seen,
+/// 1 % of g).
+pub(super) fn geometry_warnings(c: &Calibration, span_y_z_mm: [f64; 2], g: f64) -> Vec<String> {
+    let mut out = Vec::new();
+    for (slope, span, name) in [
+        (&c.residual_per_mm_of_y, span_y_z_mm[0], "y"),
+        (&c.residual_per_mm_of_z, span_y_z_mm[1], "z"),
+    ] {
+        let Some(sl) = slope else { continue };
+        if sl.value.abs() > 6.0 * sl.uncertainty && sl.value.abs() * span > 0.02 {
+            out.push(format!(
+                "the views disagree on the shared x: mirror minus direct x changes by {:.4} ± {:.4} mm per mm of {name} ({:.3} mm over the {span:.1} mm seen), which a rolled camera or a turned view gives and the configured maps do not describe: give matrix_px_per_mm (or run impactcam calibrate)",
+                sl.value, sl.uncertainty, sl.value * span
+            ));
+        }
+    }
+    for f in &c.free_fall {
+        let a = &f.acceleration_mm_s2;
+        let off = a.value - f.expected_mm_s2;
+        if off.abs() > 6.0 * a.uncertainty && off.abs() > 0.01 * g {
+            let what = if f.expected_mm_s2 == 0.0 {
+                format!(
+                    "free fall shows along {} ({:.0} ± {:.0} mm/s², expected 0): the view is turned by about {:.1}° from its configured map (a rolled camera or a tilted mirror)",
+                    f.axis, a.value, a.uncertainty, (off / g).clamp(-1.0, 1.0).asin().to_degrees()
+                )
+            } else {
+                format!(
+                    "free fall along {} measures {:.0} ± {:.0} mm/s², expected {:.0}: the view's scale is off by about {:.1} %",
+                    f.axis, a.value, a.uncertainty, f.expected_mm_s2, 100.0 * (a.value / f.expected_mm_s2 - 1.0)
+                )
+            };
+            out.push(format!(
+                "{} view: {what}; give matrix_px_per_mm (or run impactcam calibrate)",
+                f.view
+            ));
+        }
+    }
+    out
 }

@@ -1,9 +1,11 @@
-//! Views and world coordinates: the config's per-view geometry turned into maps between image
-//! pixels and world millimetres. Orthographic: each view sees one world plane (direct: x–y,
-//! mirror: x–z) at its own scale, offset and orientation.
+//! Views and world coordinates: the config's per-view map (the axis-aligned shorthand, a
+//! general affine matrix, or a pinhole projection) between world millimetres and image pixels,
+//! and its inverse given the one coordinate a single view cannot see. Each view also carries its
+//! local scaled-orthographic shape at the world origin (scale, image axes, the direction it
+//! faces), which is what the circle, marker and rim models use.
 
-use crate::config::{parse_axis, Config, ViewGeometry};
-use nalgebra::Vector3;
+use crate::config::{Config, ViewGeometry};
+use nalgebra::{Matrix2, Matrix2x3, Matrix3x4, Vector2, Vector3};
 
 pub type V3 = Vector3<f64>;
 
@@ -21,6 +23,27 @@ impl ViewKind {
             ViewKind::Mirror => "mirror",
         }
     }
+
+    /// The world axis along which this view looks (the one it cannot measure): z for the direct
+    /// view, y for the mirror.
+    pub fn depth_axis(self) -> usize {
+        match self {
+            ViewKind::Direct => 2,
+            ViewKind::Mirror => 1,
+        }
+    }
+}
+
+/// A view's map from world mm to image px.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Map {
+    /// [u, v] = M·p + origin (the shorthand is the axis-aligned case).
+    Affine {
+        m: Matrix2x3<f64>,
+        origin: Vector2<f64>,
+    },
+    /// [w·u, w·v, w] = P·[p; 1].
+    Pinhole { p: Matrix3x4<f64> },
 }
 
 #[derive(Clone, Debug)]
@@ -28,19 +51,56 @@ pub struct View {
     pub kind: ViewKind,
     /// u, v, width, height inside the frame, px.
     pub region: [u32; 4],
+    pub map: Map,
+    /// True for the shorthand: each image axis is one world axis, so a view measures its two
+    /// coordinates by itself (the formulas of the shorthand are kept exactly).
+    pub aligned: bool,
+    /// Local scale at the world origin, px per mm (the geometric mean of the two image axes').
     pub px_per_mm: f64,
+    /// Image of the world origin.
     pub origin_px: [f64; 2],
+    /// World unit vectors along which image u and v increase (at the origin, orthonormalised).
     pub u_axis: V3,
     pub v_axis: V3,
     /// Unit vector from the scene towards this view's (virtual) camera.
     pub facing: V3,
+    /// The two world axes this view measures, as (axis along u, axis along v).
+    pub axes: [usize; 2],
 }
 
 impl View {
     pub fn from_config(kind: ViewKind, g: &ViewGeometry) -> View {
-        // Validated by Config::validate; an unparsable axis cannot reach here.
-        let ua = V3::from(parse_axis(&g.u_axis).unwrap_or([1.0, 0.0, 0.0]));
-        let va = V3::from(parse_axis(&g.v_axis).unwrap_or([0.0, -1.0, 0.0]));
+        // Validated by Config::validate: a config that reaches here has a complete map of rank 2.
+        let (m, o) = g
+            .local_affine()
+            .unwrap_or(([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0]], [0.0, 0.0]));
+        let map = match &g.projection {
+            Some(p) => Map::Pinhole {
+                p: Matrix3x4::from_fn(|i, j| p[i][j]),
+            },
+            None => Map::Affine {
+                m: Matrix2x3::from_fn(|i, j| m[i][j]),
+                origin: Vector2::from(o),
+            },
+        };
+        let aligned = g.matrix_px_per_mm.is_none() && g.projection.is_none();
+        let r1 = V3::from(m[0]);
+        let r2 = V3::from(m[1]);
+        let px_per_mm = if aligned {
+            g.px_per_mm.unwrap_or(1.0)
+        } else {
+            (r1.norm() * r2.norm()).sqrt()
+        };
+        // Symmetric orthonormalisation of the two rows: the nearest pair of perpendicular unit
+        // axes, so a slightly skewed matrix tilts neither axis more than the other.
+        let (a, b) = (r1.normalize(), r2.normalize());
+        let (sum, diff) = ((a + b).normalize(), (a - b).normalize());
+        let half = std::f64::consts::FRAC_1_SQRT_2;
+        let (ua, va) = if aligned {
+            (a, b)
+        } else {
+            ((sum + diff) * half, (sum - diff) * half)
+        };
         // A camera's image axes (u right, v down) and its viewing direction d form a right-handed
         // frame: u × v = d. A mirror reverses the image, so there u × v = −d. The visible
         // hemisphere faces back along −d.
@@ -49,26 +109,90 @@ impl View {
             ViewKind::Direct => -uxv,
             ViewKind::Mirror => uxv,
         };
+        let axes = measured_axes(&r1, &r2, kind.depth_axis());
         View {
             kind,
             region: g.region,
-            px_per_mm: g.px_per_mm,
-            origin_px: g.origin_px,
+            map,
+            aligned,
+            px_per_mm,
+            origin_px: o,
             u_axis: ua,
             v_axis: va,
             facing,
+            axes,
         }
     }
 
     pub fn project(&self, p: &V3) -> [f64; 2] {
-        [
-            self.origin_px[0] + self.px_per_mm * self.u_axis.dot(p),
-            self.origin_px[1] + self.px_per_mm * self.v_axis.dot(p),
-        ]
+        if self.aligned {
+            return [
+                self.origin_px[0] + self.px_per_mm * self.u_axis.dot(p),
+                self.origin_px[1] + self.px_per_mm * self.v_axis.dot(p),
+            ];
+        }
+        match &self.map {
+            Map::Affine { m, origin } => {
+                let q = m * p + origin;
+                [q[0], q[1]]
+            }
+            Map::Pinhole { p: pm } => {
+                let q = pm * p.push(1.0);
+                [q[0] / q[2], q[1] / q[2]]
+            }
+        }
     }
 
-    /// The world coordinates this view measures: (axis, value in mm) along its u and v axes.
-    pub fn unproject(&self, px: [f64; 2]) -> [(usize, f64); 2] {
+    /// The two linear equations A·p = b in world mm that an image point puts on the point it
+    /// images, in px (a pinhole's rows divided by the homogeneous depth at `near`, so that all
+    /// views' rows weigh alike).
+    pub fn equations(&self, px: [f64; 2], near: &V3) -> (Matrix2x3<f64>, Vector2<f64>) {
+        match &self.map {
+            Map::Affine { m, origin } => (*m, Vector2::from(px) - origin),
+            Map::Pinhole { p } => {
+                let w = (p.row(2).columns(0, 3) * near)[0] + p[(2, 3)];
+                let w = if w.abs() > 1e-12 { w } else { 1.0 };
+                let a = Matrix2x3::from_fn(|i, j| (p[(i, j)] - px[i] * p[(2, j)]) / w);
+                let b = Vector2::from_fn(|i, _| (px[i] * p[(2, 3)] - p[(i, 3)]) / w);
+                (a, b)
+            }
+        }
+    }
+
+    /// The world point this image point shows, with the coordinate this view cannot measure
+    /// (its depth axis) taken from `near` (0 without one). An aligned view measures its two
+    /// coordinates without it.
+    pub fn solve(&self, px: [f64; 2], near: Option<&V3>) -> V3 {
+        let k = self.kind.depth_axis();
+        let mut p = near.copied().unwrap_or_else(V3::zeros);
+        if self.aligned {
+            for (axis, val) in self.unproject_aligned(px) {
+                p[axis] = val;
+            }
+            return p;
+        }
+        let (a, b) = self.equations(px, &p);
+        let [i, j] = other_axes(k);
+        let sub = Matrix2::new(a[(0, i)], a[(0, j)], a[(1, i)], a[(1, j)]);
+        let rhs = b - a.column(k) * p[k];
+        if let Some(x) = sub.try_inverse().map(|inv| inv * rhs) {
+            p[i] = x[0];
+            p[j] = x[1];
+        }
+        p
+    }
+
+    /// The world coordinates this view measures: (axis, value in mm) along its u and v axes,
+    /// the coordinate it cannot see taken from `near`.
+    pub fn unproject(&self, px: [f64; 2], near: Option<&V3>) -> [(usize, f64); 2] {
+        if self.aligned {
+            return self.unproject_aligned(px);
+        }
+        let p = self.solve(px, near);
+        self.axes.map(|a| (a, p[a]))
+    }
+
+    fn unproject_aligned(&self, px: [f64; 2]) -> [(usize, f64); 2] {
         let axis = |a: &V3| -> (usize, f64) {
             let i = a.iamax();
             (i, a[i])
@@ -81,6 +205,33 @@ impl View {
         ]
     }
 
+    /// Rescales the view after the shared coordinate showed that the world it measures is
+    /// a·(true) + b along x (the mirror calibration): the map's linear part times a, and the
+    /// origin moved by b along the image of world x. Not for a pinhole view (returns false).
+    pub fn rescale(&mut self, a: f64, b: f64) -> bool {
+        if self.aligned {
+            let sign = self.u_axis.x.signum();
+            self.origin_px[0] += sign * b * self.px_per_mm;
+            self.px_per_mm *= a;
+            self.map = Map::Affine {
+                m: Matrix2x3::from_rows(&[
+                    (self.u_axis * self.px_per_mm).transpose(),
+                    (self.v_axis * self.px_per_mm).transpose(),
+                ]),
+                origin: Vector2::from(self.origin_px),
+            };
+            return true;
+        }
+        let Map::Affine { m, origin } = &mut self.map else {
+            return false;
+        };
+        *origin += m.column(0) * b;
+        *m *= a;
+        self.px_per_mm *= a;
+        self.origin_px = [origin[0], origin[1]];
+        true
+    }
+
     pub fn contains(&self, u: f64, v: f64) -> bool {
         let [x, y, w, h] = self.region;
         u >= x as f64 - 0.5
@@ -88,6 +239,41 @@ impl View {
             && u < (x + w) as f64 - 0.5
             && v < (y + h) as f64 - 0.5
     }
+}
+
+/// The two world axes a view with image rows r1, r2 measures, as (along u, along v): the pair
+/// other than its depth axis, each matched to the row it dominates.
+fn measured_axes(r1: &V3, r2: &V3, depth: usize) -> [usize; 2] {
+    let [i, j] = other_axes(depth);
+    if r1[i].abs() * r2[j].abs() >= r1[j].abs() * r2[i].abs() {
+        [i, j]
+    } else {
+        [j, i]
+    }
+}
+
+/// The two world axes other than `k`, in order.
+fn other_axes(k: usize) -> [usize; 2] {
+    match k {
+        0 => [1, 2],
+        1 => [0, 2],
+        _ => [0, 1],
+    }
+}
+
+/// The least-squares world point from every view's image of it (each a pair of equations; the
+/// first guess `near` sets a pinhole's depth weights). None when the views leave a direction
+/// unseen (a single view).
+pub fn triangulate(seen: &[(&View, [f64; 2])], near: &V3) -> Option<V3> {
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = V3::zeros();
+    for (view, px) in seen {
+        let (a, b) = view.equations(*px, near);
+        ata += a.transpose() * a;
+        atb += a.transpose() * b;
+    }
+    let inv = ata.try_inverse()?;
+    Some(inv * atb)
 }
 
 /// All views the config describes, direct first.
@@ -102,8 +288,9 @@ pub fn views(cfg: &Config) -> Vec<View> {
     out
 }
 
-/// The rig as the simulator needs it, from the same geometry the analysis uses.
-/// One view as the simulator describes it.
+/// One view as the simulator describes it: the view's local scaled-orthographic shape, which
+/// is exact for the shorthand and for a matrix whose rows are perpendicular and of one length
+/// (a rolled camera, a tilted mirror); the simulator's own non-ideal rigs are drawn in hw-sim.
 pub fn sim_view(v: &View) -> hw_sim::ViewSpec {
     hw_sim::ViewSpec {
         name: v.kind.name().into(),
@@ -164,9 +351,70 @@ mod tests {
         let p = V3::new(3.0, -2.0, 1.5);
         for view in &v {
             let px = view.project(&p);
-            for (axis, val) in view.unproject(px) {
+            for (axis, val) in view.unproject(px, None) {
                 assert!((val - p[axis]).abs() < 1e-12);
             }
         }
+    }
+
+    fn config_view(kind: ViewKind, keys: &str) -> View {
+        let name = kind.name();
+        let t = format!("[geometry.{name}]\nregion=[0,0,240,96]\n{keys}\n");
+        let cfg = Config::from_toml_str(&t, "x.toml").unwrap();
+        views(&cfg).remove(0)
+    }
+
+    #[test]
+    fn a_turned_view_measures_its_coordinates_given_the_one_it_cannot_see() {
+        // A mirror tilted so that its v takes in world y: alone it cannot tell y, so its z is
+        // right only with y from elsewhere.
+        let view = config_view(
+            ViewKind::Mirror,
+            "matrix_px_per_mm=[[2.1, 0.02, 0.05],[-0.03, -0.2, 2.1]]\norigin_px=[120.0,44.0]",
+        );
+        assert!(!view.aligned);
+        assert_eq!(view.axes, [0, 2]);
+        let p = V3::new(3.0, -7.0, 1.5);
+        let px = view.project(&p);
+        let q = view.solve(px, Some(&V3::new(0.0, p.y, 0.0)));
+        assert!((q - p).norm() < 1e-12, "{q} vs {p}");
+        let blind = view.solve(px, None);
+        assert!((blind.z - p.z).abs() > 0.5, "y = −7 mm moves z by 0.67 mm");
+        // Both views together place it without any guess.
+        let direct = config_view(
+            ViewKind::Direct,
+            "matrix_px_per_mm=[[2.15, 0.05, 0.01],[0.05, -2.15, 0.0]]\norigin_px=[120.0,44.0]",
+        );
+        let both = [(&direct, direct.project(&p)), (&view, px)];
+        let t = triangulate(&both, &V3::zeros()).unwrap();
+        assert!((t - p).norm() < 1e-12);
+        // Rescaling by (a, b) when the view measured a·x + b: the rescaled view reads the old
+        // view's image of p as (p − b·x̂)/a, the whole point scaled, not x alone.
+        let mut r = view.clone();
+        assert!(r.rescale(1.01, 0.3));
+        let scaled = (p - V3::x() * 0.3) / 1.01;
+        let q = r.solve(view.project(&p), Some(&scaled));
+        assert!((q - scaled).norm() < 1e-12, "{q} vs {scaled}");
+    }
+
+    #[test]
+    fn a_pinhole_view_projects_and_solves_exactly() {
+        // 300 mm away along +z: closer points image larger about the principal point.
+        let f = 2.1576 * 300.0;
+        let keys = format!(
+            "projection=[[{f}, 0.0, -119.5, {}],[0.0, {}, -44.0, {}],[0.0, 0.0, -1.0, 300.0]]",
+            119.5 * 300.0,
+            -f,
+            44.0 * 300.0
+        );
+        let view = config_view(ViewKind::Direct, &keys);
+        assert!((view.px_per_mm - 2.1576).abs() < 1e-12);
+        assert_eq!(view.facing, V3::new(0.0, 0.0, 1.0));
+        let p = V3::new(10.0, -5.0, 8.0);
+        let px = view.project(&p);
+        let scale = 300.0 / (300.0 - 8.0);
+        assert!((px[0] - (119.5 + 2.1576 * 10.0 * scale)).abs() < 1e-9);
+        let q = view.solve(px, Some(&V3::new(0.0, 0.0, 8.0)));
+        assert!((q - p).norm() < 1e-9, "{q}");
     }
 }

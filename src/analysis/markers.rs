@@ -313,13 +313,7 @@ mod tests {
     /// A still sphere rendered by the simulator with one marker at a known angle from the view
     /// axis: the marker's measured position against its true projection, radial part (+ out).
     fn radial_error(alpha_deg: f64, azimuth_deg: f64, noise: f64, seed: u64) -> Option<f64> {
-        let g = ViewGeometry {
-            region: [0, 0, 64, 64],
-            px_per_mm: 2.1576,
-            origin_px: [31.7, 32.2],
-            u_axis: "+x".into(),
-            v_axis: "-y".into(),
-        };
+        let g = ViewGeometry::shorthand([0, 0, 64, 64], 2.1576, [31.7, 32.2], "+x", "-y");
         let view = View::from_config(ViewKind::Direct, &g);
         let scene = crate::analysis::geometry::one_view_scene(&view, 64, 64);
         let cfg = hw_sim::LabConfig {
@@ -354,7 +348,7 @@ mod tests {
             &img,
             &view,
             rough,
-            radius_mm * g.px_per_mm,
+            radius_mm * view.px_per_mm,
             cfg.background_grey,
             None,
             &[],
@@ -368,8 +362,8 @@ mod tests {
             noise.max(0.5),
         );
         let truth = [
-            g.px_per_mm * view.u_axis.dot(&marker),
-            g.px_per_mm * view.v_axis.dot(&marker),
+            view.px_per_mm * view.u_axis.dot(&marker),
+            view.px_per_mm * view.v_axis.dot(&marker),
         ];
         let m = found.first()?;
         let rel = [

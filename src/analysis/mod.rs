@@ -27,6 +27,7 @@ pub mod thesis;
 pub mod tracking;
 pub mod tracks;
 mod uncertainty;
+mod world;
 
 use crate::config::Config;
 use crate::session::SessionError;
@@ -167,8 +168,12 @@ pub fn analyze_observations(
         source_name: info.name.clone(),
         message,
     };
-    let mut views = views;
+    let (mut views, mut obs) = (views, obs);
+    world::place(&mut obs, &views);
     let calibration = calibrate_mirror(&obs, &mut views);
+    if calibration.as_ref().is_some_and(|c| c.refined) {
+        world::place(&mut obs, &views);
+    }
     let g = cfg.analysis.gravity_mm_s2;
     let contact_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
     let period = 1.0 / info.frame_rate_hz;
@@ -235,6 +240,23 @@ pub fn analyze_observations(
     // Spins, one constant vector per sphere and flight phase.
     let method = cfg.analysis.rotation;
     let ph = flight_phases(&obs, &views, split, 0.5 * period, g);
+    let mut calibration = calibration;
+    if let Some(c) = calibration.as_mut() {
+        if let Some([sy, sz]) = calibration::residual_slopes(&obs, &views) {
+            c.residual_per_mm_of_y = Some(sy);
+            c.residual_per_mm_of_z = Some(sz);
+        }
+    }
+    let free_fall = calibration::free_fall(&obs, &views, &ph, g);
+    let spans = calibration::spans_y_z(&obs, &views);
+    let calibration = match calibration {
+        Some(mut c) => {
+            c.free_fall = free_fall;
+            warnings.extend(calibration::geometry_warnings(&c, spans, g));
+            Some(c)
+        }
+        None => None,
+    };
     let obs_spin = relift_on_trajectories(&obs, &views, &fits, &ph, split, g, radii);
     let measured: Vec<spin::SpinMeasurement> = (0..4)
         .map(|k| spin::measure(&obs_spin, &ph[k], k % 2, method))
@@ -310,11 +332,7 @@ pub fn analyze_observations(
 
     // Axes some view measures, but not for every sphere in every phase: dropped by fit_all.
     let seen_axes: Vec<usize> = (0..3)
-        .filter(|&i| {
-            views
-                .iter()
-                .any(|v| v.unproject([0.0, 0.0]).iter().any(|(axis, _)| *axis == i))
-        })
+        .filter(|&i| views.iter().any(|v| v.axes.contains(&i)))
         .collect();
     let lost_axes: Vec<usize> = seen_axes
         .iter()
@@ -449,7 +467,7 @@ pub fn analyze_observations(
                 let mut centre: [Option<f64>; 3] = [None; 3];
                 for (vi, view) in views.iter().enumerate().rev() {
                     if let Some(m) = &f.spheres[s][vi] {
-                        for (axis, val) in view.unproject(m.centre_px) {
+                        for (axis, val) in view.unproject(m.centre_px, f.position_mm[s].as_ref()) {
                             centre[axis] = Some(val);
                         }
                     }
@@ -618,6 +636,7 @@ mod tests {
                     frame_id: k as u64,
                     time_s: k as f64 * dt,
                     spheres: [vec![m(0), m(1)], vec![None, None]],
+                    position_mm: [None, None],
                 }
             })
             .collect();

@@ -16,7 +16,7 @@ pub(super) fn series(obs: &[FrameObs], views: &[View], s: usize, frames: &[usize
     for f in frames.iter().map(|&k| &obs[k]) {
         for (vi, view) in views.iter().enumerate() {
             let Some(m) = &f.spheres[s][vi] else { continue };
-            for (axis, val) in view.unproject(m.centre_px) {
+            for (axis, val) in view.unproject(m.centre_px, f.position_mm[s].as_ref()) {
                 if axis == 0 && has_direct && view.kind != ViewKind::Direct {
                     continue;
                 }

@@ -194,6 +194,25 @@ pub struct Calibration {
     /// Mirror x minus direct x after refinement, mm.
     pub residual_mean_mm_after: f64,
     pub residual_rms_mm_after: f64,
+    /// How mirror x minus direct x (after refinement) changes with the world y and z, mm per
+    /// mm: zero for a right geometry; a rolled view the map does not describe shows here.
+    #[serde(default)]
+    pub residual_per_mm_of_y: Option<Scalar>,
+    #[serde(default)]
+    pub residual_per_mm_of_z: Option<Scalar>,
+    /// Free fall as each view measures it on its own axes (pooled over the flights): −g along
+    /// y and 0 along x and z for a right geometry; a turned or mis-scaled view shows here.
+    #[serde(default)]
+    pub free_fall: Vec<FreeFall>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct FreeFall {
+    pub view: String,
+    /// "x", "y" or "z".
+    pub axis: String,
+    pub acceleration_mm_s2: Scalar,
+    pub expected_mm_s2: f64,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

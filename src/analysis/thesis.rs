@@ -64,7 +64,7 @@ fn centre(f: &FrameObs, views: &[View], s: usize) -> Option<V3> {
     let mut c = [None; 3];
     for (vi, view) in views.iter().enumerate().rev() {
         let m = f.spheres[s][vi].as_ref()?;
-        for (axis, val) in view.unproject(m.centre_px) {
+        for (axis, val) in view.unproject(m.centre_px, f.position_mm[s].as_ref()) {
             c[axis] = Some(val);
         }
     }

@@ -109,6 +109,7 @@ pub fn read(
             frame_id: frame,
             time_s,
             spheres: [vec![None; views.len()], vec![None; views.len()]],
+            position_mm: [None, None],
         });
         // Not estimated by the digitising software: null in the report.
         f.spheres[s][vi] = Some(Measurement {

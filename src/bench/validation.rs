@@ -62,9 +62,14 @@ fn config_from_calibration(cal: &Value) -> Result<Config, String> {
             rows.get(1).and_then(Value::as_u64).unwrap_or(0) as u32,
         );
         let a = &v["A"];
+        let b = &v["b"];
+        let region = [0, r0, cfg.camera.width, r1.saturating_sub(r0)];
+        let origin = [num(&b[0]).unwrap_or(0.0), num(&b[1]).unwrap_or(0.0)];
+        // A is px per metre.
+        let rows: [[f64; 3]; 2] =
+            [0, 1].map(|row| [0, 1, 2].map(|k| num(&a[row][k]).unwrap_or(0.0) / 1000.0));
         let mut axes = Vec::new();
-        for row in 0..2 {
-            let r: Vec<f64> = (0..3).map(|k| num(&a[row][k]).unwrap_or(0.0)).collect();
+        for r in &rows {
             let (k, big) = r
                 .iter()
                 .enumerate()
@@ -78,28 +83,20 @@ fn config_from_calibration(cal: &Value) -> Result<Config, String> {
                 .map(|(_, x)| x.abs())
                 .sum();
             if big == 0.0 || rest > 1e-6 * big.abs() {
-                return Err(format!(
-                    "the {name} view is rotated (A row {row} = {r:?}): only a general map describes it (real-rig geometry issue)"
-                ));
+                // A turned view: only the general map describes it.
+                return Ok(ViewGeometry::affine(region, rows, origin));
             }
-            axes.push((
-                format!(
-                    "{}{}",
-                    if big > 0.0 { '+' } else { '-' },
-                    ['x', 'y', 'z'][k]
-                ),
-                big.abs(),
-            ));
+            let axis = format!(
+                "{}{}",
+                if big > 0.0 { '+' } else { '-' },
+                ['x', 'y', 'z'][k]
+            );
+            axes.push((axis, big.abs()));
         }
-        let b = &v["b"];
-        Ok(ViewGeometry {
-            region: [0, r0, cfg.camera.width, r1.saturating_sub(r0)],
-            // A is px per metre: the scale of u (both rows agree for a square-pixel view).
-            px_per_mm: axes[0].1 / 1000.0,
-            origin_px: [num(&b[0]).unwrap_or(0.0), num(&b[1]).unwrap_or(0.0)],
-            u_axis: axes[0].0.clone(),
-            v_axis: axes[1].0.clone(),
-        })
+        // An aligned view: the shorthand (the scale of u; both rows agree for square pixels).
+        Ok(ViewGeometry::shorthand(
+            region, axes[0].1, origin, &axes[0].0, &axes[1].0,
+        ))
     };
     cfg.geometry.direct = Some(view("direct")?);
     cfg.geometry.mirror = Some(view("mirror")?);

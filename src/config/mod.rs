@@ -224,36 +224,98 @@ pub struct Geometry {
     pub mirror: Option<ViewGeometry>,
 }
 
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ViewGeometry {
     /// u, v, width, height of this view inside the frame, px.
     pub region: [u32; 4],
-    pub px_per_mm: f64,
-    /// Image (u, v) of the world origin.
-    pub origin_px: [f64; 2],
-    pub u_axis: String,
-    pub v_axis: String,
+    /// Shorthand (with `u_axis`, `v_axis`): an axis-aligned orthographic view.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub px_per_mm: Option<f64>,
+    /// Image (u, v) of the world origin (shorthand and `matrix_px_per_mm`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub origin_px: Option<[f64; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub u_axis: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub v_axis: Option<String>,
+    /// General affine view: [u, v] = M·[x, y, z]_mm + origin_px.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub matrix_px_per_mm: Option<[[f64; 3]; 2]>,
+    /// Pinhole view: world mm → homogeneous px, 3×4 (DLT convention).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub projection: Option<[[f64; 4]; 3]>,
+}
+
+impl ViewGeometry {
+    /// The shorthand: scale, the image of the world origin, and the world axes along u and v.
+    pub fn shorthand(
+        region: [u32; 4],
+        px_per_mm: f64,
+        origin_px: [f64; 2],
+        u_axis: &str,
+        v_axis: &str,
+    ) -> ViewGeometry {
+        ViewGeometry {
+            region,
+            px_per_mm: Some(px_per_mm),
+            origin_px: Some(origin_px),
+            u_axis: Some(u_axis.into()),
+            v_axis: Some(v_axis.into()),
+            ..Default::default()
+        }
+    }
+
+    /// A general affine view.
+    pub fn affine(region: [u32; 4], matrix_px_per_mm: [[f64; 3]; 2], origin_px: [f64; 2]) -> Self {
+        ViewGeometry {
+            region,
+            origin_px: Some(origin_px),
+            matrix_px_per_mm: Some(matrix_px_per_mm),
+            ..Default::default()
+        }
+    }
+
+    /// The map's linear part and offset at the world origin, px per mm and px: exact for the
+    /// shorthand and a matrix, the tangent map for a projection. None without a complete map.
+    pub fn local_affine(&self) -> Option<([[f64; 3]; 2], [f64; 2])> {
+        if let Some(p) = &self.projection {
+            let w = p[2][3];
+            if w == 0.0 {
+                return None;
+            }
+            let o = [p[0][3] / w, p[1][3] / w];
+            let row = |i: usize| [0, 1, 2].map(|j| (p[i][j] - o[i] * p[2][j]) / w);
+            return Some(([row(0), row(1)], o));
+        }
+        if let Some(m) = self.matrix_px_per_mm {
+            return Some((m, self.origin_px?));
+        }
+        let s = self.px_per_mm?;
+        let ua = parse_axis(self.u_axis.as_deref()?)?;
+        let va = parse_axis(self.v_axis.as_deref()?)?;
+        Some(([ua.map(|x| s * x), va.map(|x| s * x)], self.origin_px?))
+    }
 }
 
 impl Geometry {
     /// The thesis's layout, as in the embedded default.
     pub fn thesis() -> Geometry {
         Geometry {
-            direct: Some(ViewGeometry {
-                region: [0, 0, 240, 96],
-                px_per_mm: 2.1576,
-                origin_px: [119.5, 44.0],
-                u_axis: "+x".into(),
-                v_axis: "-y".into(),
-            }),
-            mirror: Some(ViewGeometry {
-                region: [0, 96, 240, 96],
-                px_per_mm: 2.1175,
-                origin_px: [121.0, 144.0],
-                u_axis: "+x".into(),
-                v_axis: "+z".into(),
-            }),
+            direct: Some(ViewGeometry::shorthand(
+                [0, 0, 240, 96],
+                2.1576,
+                [119.5, 44.0],
+                "+x",
+                "-y",
+            )),
+            mirror: Some(ViewGeometry::shorthand(
+                [0, 96, 240, 96],
+                2.1175,
+                [121.0, 144.0],
+                "+x",
+                "+z",
+            )),
         }
     }
 }
@@ -508,6 +570,42 @@ mod tests {
         let t = "[geometry.direct]\nregion=[0,0,240,96]\npx_per_mm=2.0\norigin_px=[120.0,48.0]\nu_axis=\"+x\"\nv_axis=\"-y\"\n";
         let c = Config::from_toml_str(t, "x.toml").unwrap();
         assert!(c.geometry.mirror.is_none());
+    }
+
+    /// A config of one mirror view with the given map keys: the error, if any.
+    fn mirror_with(keys: &str) -> Option<String> {
+        let t = format!("[geometry.mirror]\nregion=[0,96,240,96]\n{keys}\n");
+        Config::from_toml_str(&t, "x.toml")
+            .err()
+            .map(|e| e.to_string())
+    }
+
+    #[test]
+    fn general_maps_are_accepted_and_bad_ones_named() {
+        // A tilted mirror (v takes in a little y) and a pinhole 300 mm away are maps.
+        let affine =
+            "matrix_px_per_mm=[[2.1, 0.0, 0.05],[0.0, -0.2, 2.1]]\norigin_px=[120.0,144.0]";
+        assert_eq!(mirror_with(affine), None);
+        let pinhole = "projection=[[2.1,0.0,-0.4,121.0],[0.0,0.0,-2.1,144.0],[0.0,0.0033,0.0,1.0]]";
+        assert_eq!(mirror_with(pinhole), None);
+        for (keys, expect) in [
+            // Shorthand and matrix in one view.
+            ("px_per_mm=2.0\nu_axis=\"+x\"\nv_axis=\"+z\"\nmatrix_px_per_mm=[[2.1,0,0],[0,0,2.1]]\norigin_px=[1.0,1.0]", "px_per_mm/u_axis/v_axis and matrix_px_per_mm given together"),
+            // Rank 1: parallel rows.
+            ("matrix_px_per_mm=[[2.0,0.0,1.0],[4.0,0.0,2.0]]\norigin_px=[1.0,1.0]", "geometry.mirror.matrix_px_per_mm: rank below 2"),
+            // The x–y plane in the mirror view.
+            ("matrix_px_per_mm=[[2.0,0.0,0.0],[0.0,-2.0,0.1]]\norigin_px=[1.0,1.0]", "geometry.mirror.matrix_px_per_mm: this view does not see the world x–z plane"),
+            // A matrix without its offset; a projection with one.
+            ("matrix_px_per_mm=[[2.1,0,0],[0,0,2.1]]", "geometry.mirror.origin_px: missing"),
+            ("projection=[[2.1,0,0,121],[0,0,2.1,144],[0,0,0,1]]\norigin_px=[1.0,1.0]", "geometry.mirror.origin_px: not used with projection"),
+            ("projection=[[2.1,0,0,121],[0,0,2.1,144],[0,1,0,0]]", "geometry.mirror.projection: the world origin is on the camera's focal plane"),
+            ("px_per_mm=2.0\nu_axis=\"+x\"", "geometry.mirror.origin_px, v_axis: missing"),
+            ("region_px=1", "unknown field"),
+            ("", "geometry.mirror: no map"),
+        ] {
+            let e = mirror_with(keys).unwrap_or_else(|| panic!("{keys}: accepted"));
+            assert!(e.contains(expect), "{keys}: {e}");
+        }
     }
 
     #[test]

@@ -133,12 +133,11 @@ impl Config {
             );
         }
         for (name, view, plane) in [
-            ("direct", &self.geometry.direct, 'y'),
-            ("mirror", &self.geometry.mirror, 'z'),
+            ("direct", &self.geometry.direct, 2),
+            ("mirror", &self.geometry.mirror, 1),
         ] {
             let Some(v) = view else { continue };
             let key = format!("geometry.{name}");
-            pos(&format!("{key}.px_per_mm"), v.px_per_mm)?;
             let [u0, v0, w, h] = v.region;
             let (u_end, v_end) = (u64::from(u0) + u64::from(w), u64::from(v0) + u64::from(h));
             if w == 0 || h == 0 || u_end > u64::from(c.width) || v_end > u64::from(c.height) {
@@ -147,36 +146,7 @@ impl Config {
                     v.region, c.width, c.height
                 ));
             }
-            if !v.origin_px.iter().all(|x| x.is_finite()) {
-                return Err(format!("{key}.origin_px: expected two finite numbers"));
-            }
-            let ua = parse_axis(&v.u_axis).ok_or_else(|| {
-                format!(
-                    "{key}.u_axis: {:?} is not an axis, expected one of +x -x +y -y +z -z",
-                    v.u_axis
-                )
-            })?;
-            let va = parse_axis(&v.v_axis).ok_or_else(|| {
-                format!(
-                    "{key}.v_axis: {:?} is not an axis, expected one of +x -x +y -y +z -z",
-                    v.v_axis
-                )
-            })?;
-            let uses = |a: [f64; 3], axis: char| match axis {
-                'x' => a[0] != 0.0,
-                'y' => a[1] != 0.0,
-                _ => a[2] != 0.0,
-            };
-            if !(uses(ua, 'x') || uses(ua, plane))
-                || !(uses(va, 'x') || uses(va, plane))
-                || ua == va
-                || ua.iter().zip(va.iter()).all(|(a, b)| a.abs() == b.abs())
-            {
-                return Err(format!(
-                    "{key}: u_axis {:?} and v_axis {:?} must be the two different axes of the world x–{plane} plane this view sees",
-                    v.u_axis, v.v_axis
-                ));
-            }
+            check_view_map(&key, v, plane)?;
         }
         for i in 0..2 {
             let (d, m) = self.spheres.sphere(i);
@@ -211,4 +181,147 @@ impl Config {
         self.sim.validate()?;
         Ok(())
     }
+}
+
+/// One view's map: exactly one of the three forms, complete, finite, of rank 2, and seeing the
+/// world plane its view is for (x–y for the direct view, `depth_axis` 2; x–z for the mirror, 1).
+fn check_view_map(key: &str, v: &ViewGeometry, depth_axis: usize) -> Result<(), String> {
+    let plane = ["", "z", "y"][depth_axis];
+    let shorthand = v.px_per_mm.is_some() || v.u_axis.is_some() || v.v_axis.is_some();
+    let forms = [
+        shorthand,
+        v.matrix_px_per_mm.is_some(),
+        v.projection.is_some(),
+    ];
+    match forms.iter().filter(|f| **f).count() {
+        0 => {
+            return Err(format!(
+                "{key}: no map, expected px_per_mm with u_axis and v_axis, or matrix_px_per_mm, or projection"
+            ))
+        }
+        1 => {}
+        _ => {
+            let given: Vec<&str> = ["px_per_mm/u_axis/v_axis", "matrix_px_per_mm", "projection"]
+                .iter()
+                .zip(forms)
+                .filter(|(_, f)| *f)
+                .map(|(n, _)| *n)
+                .collect();
+            return Err(format!(
+                "{key}: {} given together, expected one of them (the shorthand, an affine matrix or a 3×4 projection)",
+                given.join(" and ")
+            ));
+        }
+    }
+    if shorthand {
+        let (Some(s), Some(o), Some(ua), Some(va)) =
+            (v.px_per_mm, v.origin_px, &v.u_axis, &v.v_axis)
+        else {
+            let missing: Vec<&str> = [
+                ("px_per_mm", v.px_per_mm.is_none()),
+                ("origin_px", v.origin_px.is_none()),
+                ("u_axis", v.u_axis.is_none()),
+                ("v_axis", v.v_axis.is_none()),
+            ]
+            .iter()
+            .filter(|(_, m)| *m)
+            .map(|(n, _)| *n)
+            .collect();
+            return Err(format!(
+                "{key}.{}: missing, the shorthand needs px_per_mm, origin_px, u_axis and v_axis",
+                missing.join(", ")
+            ));
+        };
+        if !(s.is_finite() && s > 0.0) {
+            return Err(format!(
+                "{key}.px_per_mm: {s} is not allowed, expected a positive number"
+            ));
+        }
+        if !o.iter().all(|x| x.is_finite()) {
+            return Err(format!("{key}.origin_px: expected two finite numbers"));
+        }
+        let pa = parse_axis(ua).ok_or_else(|| {
+            format!("{key}.u_axis: {ua:?} is not an axis, expected one of +x -x +y -y +z -z")
+        })?;
+        let pb = parse_axis(va).ok_or_else(|| {
+            format!("{key}.v_axis: {va:?} is not an axis, expected one of +x -x +y -y +z -z")
+        })?;
+        let uses = |a: [f64; 3], i: usize| a[i] != 0.0;
+        let other = 3 - depth_axis; // the plane's axis besides x
+        if !(uses(pa, 0) || uses(pa, other))
+            || !(uses(pb, 0) || uses(pb, other))
+            || pa.iter().zip(pb.iter()).all(|(a, b)| a.abs() == b.abs())
+        {
+            return Err(format!(
+                "{key}: u_axis {ua:?} and v_axis {va:?} must be the two different axes of the world x–{plane} plane this view sees"
+            ));
+        }
+        return Ok(());
+    }
+    let field = if v.projection.is_some() {
+        "projection"
+    } else {
+        "matrix_px_per_mm"
+    };
+    if let Some(m) = &v.matrix_px_per_mm {
+        if !m.iter().flatten().all(|x| x.is_finite()) {
+            return Err(format!(
+                "{key}.matrix_px_per_mm: expected 2×3 finite numbers"
+            ));
+        }
+        match v.origin_px {
+            None => {
+                return Err(format!(
+                    "{key}.origin_px: missing, matrix_px_per_mm needs the image of the world origin"
+                ))
+            }
+            Some(o) if !o.iter().all(|x| x.is_finite()) => {
+                return Err(format!("{key}.origin_px: expected two finite numbers"))
+            }
+            _ => {}
+        }
+    }
+    if let Some(p) = &v.projection {
+        if !p.iter().flatten().all(|x| x.is_finite()) {
+            return Err(format!("{key}.projection: expected 3×4 finite numbers"));
+        }
+        if v.origin_px.is_some() {
+            return Err(format!(
+                "{key}.origin_px: not used with projection, whose last column holds the offset; remove it"
+            ));
+        }
+        if p[2][3].abs() <= 1e-12 * p.iter().flatten().map(|x| x.abs()).fold(0.0, f64::max) {
+            return Err(format!(
+                "{key}.projection: the world origin is on the camera's focal plane (p34 = 0), expected a camera looking at the rig"
+            ));
+        }
+    }
+    let Some((m, _)) = v.local_affine() else {
+        return Err(format!("{key}: no map"));
+    };
+    // The 2×2 minors of M: which world plane the view sees, and whether it sees one at all.
+    let minor = |i: usize, j: usize| m[0][i] * m[1][j] - m[0][j] * m[1][i];
+    let minors = [(minor(1, 2), 0), (minor(0, 2), 1), (minor(0, 1), 2)]; // (det, depth axis)
+    let norm = |r: &[f64; 3]| r.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let area = minors.iter().map(|(d, _)| d * d).sum::<f64>().sqrt();
+    if area <= 1e-3 * norm(&m[0]) * norm(&m[1]) || area == 0.0 {
+        return Err(format!(
+            "{key}.{field}: rank below 2 (its rows are parallel or zero), expected a map that images a plane"
+        ));
+    }
+    let (best, along) = minors
+        .iter()
+        .copied()
+        .max_by(|a, b| a.0.abs().total_cmp(&b.0.abs()))
+        .unwrap_or((0.0, depth_axis));
+    // A view may be turned a few degrees (roll, a tilted mirror), not look along another axis:
+    // the world x both views need and this view's own axis must stay well in its image.
+    if along != depth_axis || best.abs() < 0.5 * area {
+        return Err(format!(
+            "{key}.{field}: this view does not see the world x–{plane} plane (it looks along {}), expected the {} view to see x and {plane}",
+            ["x", "y", "z"][along],
+            if depth_axis == 2 { "direct" } else { "mirror" }
+        ));
+    }
+    Ok(())
 }

@@ -44,13 +44,13 @@ fn test_view(
     origin_px: [f64; 2],
     v_axis: &str,
 ) -> View {
-    let g = crate::config::ViewGeometry {
-        region: [0, 0, width, height],
+    let g = crate::config::ViewGeometry::shorthand(
+        [0, 0, width, height],
         px_per_mm,
         origin_px,
-        u_axis: "+x".into(),
-        v_axis: v_axis.into(),
-    };
+        "+x",
+        v_axis,
+    );
     View::from_config(kind, &g)
 }
 

@@ -40,11 +40,15 @@ pub struct FrameObs {
     pub time_s: f64,
     /// [sphere a, sphere b][view index] (views in the order of `geometry::views`).
     pub spheres: [Vec<Option<Measurement>>; 2],
+    /// Each sphere's 3-D centre, mm, from both views (or one view and the nearest frames where
+    /// both saw it): the coordinate a turned view cannot see (`world::place`). None before
+    /// placement, and for aligned views, which do not need it.
+    pub position_mm: [Option<super::geometry::V3>; 2],
 }
 
 /// World x of an image point in a view (both views see x).
 fn world_x(view: &View, px: [f64; 2]) -> f64 {
-    view.unproject(px)
+    view.unproject(px, None)
         .iter()
         .find(|(axis, _)| *axis == 0)
         .map(|(_, x)| *x)
@@ -83,6 +87,7 @@ pub fn measure_all(
             frame_id: meta.frame_id,
             time_s: cx.t,
             spheres,
+            position_mm: [None, None],
         });
         progress(i + 1, n);
     }
@@ -454,7 +459,7 @@ impl Tracker {
                     let depth = |s: usize| -> Option<f64> {
                         let m = spheres[s][0].as_ref()?;
                         cx.views[0]
-                            .unproject(m.centre_px)
+                            .unproject(m.centre_px, None)
                             .iter()
                             .find(|(axis, _)| *axis == fi)
                             .map(|(_, x)| x * view.facing[fi])

@@ -77,12 +77,18 @@ pub fn sweep(quick: bool) -> Vec<Case> {
 
 /// The default geometry scaled to a larger frame (same field of view, more pixels per mm).
 fn scaled(g: &ViewGeometry, k: f64) -> ViewGeometry {
+    // Pixel edges scale by k: u' + 0.5 = k·(u + 0.5).
+    let px = |x: f64| (x + 0.5) * k - 0.5;
     ViewGeometry {
         region: g.region.map(|x| (x as f64 * k).round() as u32),
-        px_per_mm: g.px_per_mm * k,
-        origin_px: g.origin_px.map(|x| (x + 0.5) * k - 0.5),
-        u_axis: g.u_axis.clone(),
-        v_axis: g.v_axis.clone(),
+        px_per_mm: g.px_per_mm.map(|s| s * k),
+        origin_px: g.origin_px.map(|o| o.map(px)),
+        matrix_px_per_mm: g.matrix_px_per_mm.map(|m| m.map(|r| r.map(|x| x * k))),
+        projection: g.projection.map(|p| {
+            let row = |i: usize| [0, 1, 2, 3].map(|j| k * p[i][j] + (0.5 * k - 0.5) * p[2][j]);
+            [row(0), row(1), p[2]]
+        }),
+        ..g.clone()
     }
 }
 
