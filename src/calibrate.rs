@@ -36,6 +36,8 @@ pub struct DirectFit {
     /// Image direction of gravity away from straight down, deg (positive: towards +u).
     pub roll_deg: Fitted,
     pub residual_rms_px: f64,
+    /// The pinhole's distance from the world origin, when perspective was found (`distance`).
+    pub camera_distance_mm: Option<Fitted>,
 }
 
 /// The mirror view as found.
@@ -43,16 +45,21 @@ pub struct DirectFit {
 pub struct MirrorFit {
     pub scale: Fitted,
     pub scale_from_diameter: Fitted,
-    /// Rotation of the mirror view's image, deg.
+    /// The mirror view turned about world y, its line of sight (its image rotated), deg.
     pub roll_deg: Fitted,
-    /// The mirror view turned about world x, deg (twice the mirror's own tilt from 45°).
+    /// The mirror view turned about world x, deg (twice the mirror's own tilt from 45°): its
+    /// v takes in world y.
     pub tilt_deg: Fitted,
+    /// The mirror view turned about world z, deg: its u takes in world y.
+    pub yaw_deg: Fitted,
     /// Image u of the world origin, px.
     pub origin_u_px: Fitted,
     /// Whether the mirror shows world x reversed (u decreasing with x).
     pub x_reversed: bool,
     pub residual_rms_px: f64,
     pub points: usize,
+    /// The virtual pinhole's distance from the world origin, when perspective was found.
+    pub camera_distance_mm: Option<Fitted>,
 }
 
 #[derive(Clone, Debug)]
@@ -120,24 +127,80 @@ pub fn calibrate(src: &mut dyn FrameSource, cfg: &Config) -> Result<Calibrated, 
     let Some(direct_cfg) = cfg.geometry.direct.clone() else {
         return Err(CalibrateError::NoDirectView { source_name: name });
     };
-    let (_, details) = analysis::analyze_detailed(src, cfg, &mut |_, _| {}).map_err(|cause| {
-        CalibrateError::Provisional {
+    // The provisional scales from the blobs' size where the config's are off by more than 5 %:
+    // the analysis takes a disc more than 10 % from its expected radius for something else.
+    let mut cfg = cfg.clone();
+    let mean_diameter_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
+    let survey =
+        analysis::blob_survey(src, &cfg, 60).map_err(|cause| CalibrateError::Provisional {
             source_name: name.clone(),
             cause,
+        })?;
+    let kinds: Vec<ViewKind> = analysis::geometry::views(&cfg)
+        .iter()
+        .map(|v| v.kind)
+        .collect();
+    for (vi, kind) in kinds.iter().enumerate() {
+        let mut d: Vec<f64> = survey
+            .iter()
+            .flat_map(|f| f[vi].iter().map(|b| b.1))
+            .collect();
+        if d.len() < 3 {
+            continue;
         }
-    })?;
-    let views = &details.views;
-    let obs = &details.obs;
+        d.sort_by(f64::total_cmp);
+        let slot = match kind {
+            ViewKind::Direct => &mut cfg.geometry.direct,
+            ViewKind::Mirror => &mut cfg.geometry.mirror,
+        };
+        if let Some(v) = slot.as_mut() {
+            rescale_provisional(v, d[d.len() / 2] / mean_diameter_mm);
+        }
+    }
+    // The mirror's x against the direct view's: where each view shows the same number of
+    // blobs (one or two), paired in order of u; u_mirror = a·u_direct + b gives the mirror's
+    // scale along x (and whether it reverses x) and the u offset that makes the two x agree, so
+    // that the spheres are labelled alike in both views.
+    if let (Some(di), Some(mi)) = (
+        kinds.iter().position(|k| *k == ViewKind::Direct),
+        kinds.iter().position(|k| *k == ViewKind::Mirror),
+    ) {
+        let mut pairs = Vec::new();
+        for f in &survey {
+            let (mut d, mut m) = (f[di].clone(), f[mi].clone());
+            if d.len() != m.len() || d.is_empty() || d.len() > 2 {
+                continue;
+            }
+            d.sort_by(|p, q| p.0[0].total_cmp(&q.0[0]));
+            m.sort_by(|p, q| p.0[0].total_cmp(&q.0[0]));
+            pairs.extend(d.iter().zip(&m).map(|(p, q)| (p.0[0], q.0[0])));
+        }
+        if let (Some(fit), Some(dg), Some(mg)) = (
+            line_fit(&pairs),
+            cfg.geometry.direct.clone(),
+            cfg.geometry.mirror.as_mut(),
+        ) {
+            align_mirror(&dg, mg, fit);
+        }
+    }
+    let cfg = &cfg;
+    let (views, obs) =
+        analysis::measure(src, cfg).map_err(|cause| CalibrateError::Provisional {
+            source_name: name.clone(),
+            cause,
+        })?;
+    let (views, obs) = (&views, &obs);
     let g = cfg.analysis.gravity_mm_s2;
     let diam = [cfg.spheres.sphere(0).0, cfg.spheres.sphere(1).0];
     let di = views
         .iter()
         .position(|v| v.kind == ViewKind::Direct)
         .ok_or_else(|| data("no direct view".into()))?;
+    let (split_frame, phases) = flights(obs, di).map_err(&data)?;
 
     // Direct view: free fall per flight, pooled.
     let mut acc = Vec::new();
-    for (k, frames) in details.phases.iter().enumerate() {
+    for (k, frames) in phases.iter().enumerate() {
         let pts: Vec<(f64, [f64; 2])> = frames
             .iter()
             .filter_map(|&i| Some((obs[i].time_s, obs[i].spheres[k % 2][di].as_ref()?.centre_px)))
@@ -177,7 +240,7 @@ pub fn calibrate(src: &mut dyn FrameSource, cfg: &Config) -> Result<Calibrated, 
     let mi = views.iter().position(|v| v.kind == ViewKind::Mirror);
     let bundle = fit_bundle(
         obs,
-        &details.phases,
+        &phases,
         g,
         di,
         mi,
@@ -191,10 +254,12 @@ pub fn calibrate(src: &mut dyn FrameSource, cfg: &Config) -> Result<Calibrated, 
         bundle.direct_roll.value.to_radians(),
     );
     let mut geometry = crate::config::Geometry {
-        direct: Some(ViewGeometry::affine(
+        direct: Some(view_geometry(
             direct_cfg.region,
             m_direct,
             origin_direct,
+            ViewKind::Direct,
+            bundle.kappa[0],
         )),
         mirror: None,
     };
@@ -210,13 +275,19 @@ pub fn calibrate(src: &mut dyn FrameSource, cfg: &Config) -> Result<Calibrated, 
         let sx = if fit.x_reversed { -1.0 } else { 1.0 };
         let m = mirror_matrix(
             fit.scale.value,
-            fit.roll_deg.value.to_radians(),
-            fit.tilt_deg.value.to_radians(),
+            [fit.tilt_deg.value, fit.roll_deg.value, fit.yaw_deg.value].map(f64::to_radians),
             sx,
             f,
         );
         let origin = [fit.origin_u_px.value, views[mi].origin_px[1]];
-        geometry.mirror = Some(ViewGeometry::affine(region, m, origin));
+        geometry.mirror = Some(view_geometry(
+            region,
+            m,
+            origin,
+            ViewKind::Mirror,
+            bundle.kappa[1],
+        ));
+        fit.camera_distance_mm = distance(bundle.kappa[1]);
         if let Some(d) = diameter_scale(obs, mi, diam) {
             fit.scale_from_diameter = d;
         }
@@ -225,26 +296,153 @@ pub fn calibrate(src: &mut dyn FrameSource, cfg: &Config) -> Result<Calibrated, 
     Ok(Calibrated {
         source: name,
         frames: obs.len(),
-        impact_frame: obs
-            .iter()
-            .enumerate()
-            .min_by(|a, b| {
-                (a.1.time_s - details.impact_time_s)
-                    .abs()
-                    .total_cmp(&(b.1.time_s - details.impact_time_s).abs())
-            })
-            .map(|(i, _)| i)
-            .unwrap_or(0),
+        impact_frame: split_frame,
         direct: DirectFit {
             scale_from_free_fall,
             scale_from_diameter,
             scale: bundle.direct_scale,
             roll_deg: bundle.direct_roll,
             residual_rms_px: bundle.residual_rms_px[0],
+            camera_distance_mm: distance(bundle.kappa[0]),
         },
         mirror,
         geometry,
     })
+}
+
+/// The flights in the direct view, in its image alone: split at the frame where a and b are
+/// closest, then for each sphere and side a parabola per image coordinate seeded on the 8
+/// frames nearest the split and grown outwards while each next frame lies within 5σ of it (a
+/// sphere still rolling in its tube leaves the parabola). Returns the split frame and the frames
+/// of [a before, b before, a after, b after].
+fn flights(obs: &[FrameObs], di: usize) -> Result<(usize, [Vec<usize>; 4]), String> {
+    let centre = |i: usize, s: usize| obs[i].spheres[s][di].as_ref().map(|m| m.centre_px);
+    let split = (0..obs.len())
+        .filter_map(|i| {
+            let (a, b) = (centre(i, 0)?, centre(i, 1)?);
+            Some((i, (a[0] - b[0]).hypot(a[1] - b[1])))
+        })
+        .min_by(|x, y| x.1.total_cmp(&y.1))
+        .map(|(i, _)| i)
+        .ok_or("spheres a and b are never both measured in the direct view")?;
+    const SEED: usize = 8;
+    let mut out: [Vec<usize>; 4] = Default::default();
+    for (k, slot) in out.iter_mut().enumerate() {
+        let (s, pre) = (k % 2, k < 2);
+        // Outwards from the split, a frame's gap from it left for the contact itself.
+        let order: Vec<usize> = if pre {
+            (0..split.saturating_sub(1)).rev().collect()
+        } else {
+            (split + 2..obs.len()).collect()
+        };
+        let order: Vec<usize> = order
+            .into_iter()
+            .filter(|&i| centre(i, s).is_some())
+            .collect();
+        if order.len() < SEED {
+            continue;
+        }
+        let mut kept: Vec<usize> = order[..SEED].to_vec();
+        let mut misses = 0;
+        for &i in &order[SEED..] {
+            let pts: Vec<(f64, [f64; 2])> = kept
+                .iter()
+                .filter_map(|&j| Some((obs[j].time_s, centre(j, s)?)))
+                .collect();
+            let Some((c, rms)) = parabola(&pts) else {
+                break;
+            };
+            let (t, q) = (obs[i].time_s, centre(i, s).unwrap_or([f64::NAN; 2]));
+            let off = (0..2)
+                .map(|a| (q[a] - (c[a][0] + c[a][1] * t + c[a][2] * t * t)).abs())
+                .fold(0.0, f64::max);
+            if off <= 5.0 * rms.max(0.05) {
+                kept.push(i);
+                misses = 0;
+            } else {
+                misses += 1;
+                if misses >= 3 {
+                    break;
+                }
+            }
+        }
+        kept.sort_unstable();
+        *slot = kept;
+    }
+    Ok((split, out))
+}
+
+/// Coefficients (c0, c1, c2) of u(t) and v(t) = c0 + c1·t + c2·t², and the RMS residual, px.
+fn parabola(pts: &[(f64, [f64; 2])]) -> Option<([[f64; 3]; 2], f64)> {
+    if pts.len() < 4 {
+        return None;
+    }
+    let a = DMatrix::from_fn(pts.len(), 3, |r, j| pts[r].0.powi(j as i32));
+    let svd = a.clone().svd(true, true);
+    let mut coef = [[0.0; 3]; 2];
+    let mut ss = 0.0;
+    for (c, co) in coef.iter_mut().enumerate() {
+        let b = DVector::from_fn(pts.len(), |r, _| pts[r].1[c]);
+        let x = svd.solve(&b, 1e-12).ok()?;
+        ss += (b - &a * &x).norm_squared();
+        *co = [x[0], x[1], x[2]];
+    }
+    Some((coef, (ss / (2 * pts.len()) as f64).sqrt()))
+}
+
+/// Least-squares line y = a·x + b through (x, y) pairs, when they span 20 px of x.
+fn line_fit(pairs: &[(f64, f64)]) -> Option<(f64, f64)> {
+    if pairs.len() < 6 {
+        return None;
+    }
+    let n = pairs.len() as f64;
+    let (mx, my) = (
+        pairs.iter().map(|p| p.0).sum::<f64>() / n,
+        pairs.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxx: f64 = pairs.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = pairs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let lo = pairs.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
+    let hi = pairs.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
+    (hi - lo >= 20.0 && sxx > 0.0).then(|| (sxy / sxx, my - sxy / sxx * mx))
+}
+
+/// A provisional shorthand mirror made to agree with the direct view on x, from
+/// u_mirror = a·u_direct + b (matrices and projections are left as given).
+fn align_mirror(direct: &ViewGeometry, mirror: &mut ViewGeometry, (a, b): (f64, f64)) {
+    let (Some(sd), Some(od), Some(ud)) = (direct.px_per_mm, direct.origin_px, &direct.u_axis)
+    else {
+        return;
+    };
+    let (Some(_), Some(om)) = (mirror.px_per_mm, mirror.origin_px.as_mut()) else {
+        return;
+    };
+    // x = sign_d·(u_d − o_d)/s_d, so u_m = a·u_d + b is the mirror with scale |a|·s_d along
+    // x, reversed when a·sign_d < 0, and u offset b + a·o_d.
+    let sign_d = if ud.starts_with('-') { -1.0 } else { 1.0 };
+    om[0] = b + a * od[0];
+    mirror.px_per_mm = Some(a.abs() * sd);
+    mirror.u_axis = Some(if a * sign_d < 0.0 { "-x" } else { "+x" }.into());
+}
+
+/// Sets a provisional view's scale to `px_per_mm` when its own is more than 5 % away (a
+/// projection is left as given).
+fn rescale_provisional(v: &mut ViewGeometry, px_per_mm: f64) {
+    let Some((m, _)) = v.local_affine() else {
+        return;
+    };
+    let norm = |r: &[f64; 3]| r.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let now = (norm(&m[0]) * norm(&m[1])).sqrt();
+    let k = px_per_mm / now;
+    if !k.is_finite() || (k - 1.0).abs() <= 0.05 {
+        return;
+    }
+    if let Some(s) = v.px_per_mm.as_mut() {
+        *s *= k;
+    }
+    if let Some(mm) = v.matrix_px_per_mm.as_mut() {
+        *mm = mm.map(|r| r.map(|x| x * k));
+    }
 }
 
 /// The sign with which world z shows along the mirror's v (from the provisional map: which side
@@ -257,16 +455,60 @@ fn z_sign(view: &View) -> f64 {
     }
 }
 
-/// M = s·R(φ)·[[sx, 0, 0], [0, f·sin τ, f·cos τ]], R(φ) = [[cos, −sin], [sin, cos]].
-fn mirror_matrix(s: f64, phi: f64, tau: f64, sx: f64, f: f64) -> [[f64; 3]; 2] {
-    let (sp, cp) = phi.sin_cos();
-    let (st, ct) = tau.sin_cos();
-    let col_x = [s * cp * sx, s * sp * sx];
-    let zeta = [-s * sp * f, s * cp * f]; // image of the turned depth axis
-    [
-        [col_x[0], zeta[0] * st, zeta[0] * ct],
-        [col_x[1], zeta[1] * st, zeta[1] * ct],
-    ]
+/// The camera's distance 1/κ with its σ, when the fit found perspective: κ beyond 4σ and
+/// beyond 1e-4 /mm (a camera nearer than 10 m, whose scale changes by 0.2 % over 20 mm of depth).
+fn distance(kappa: Fitted) -> Option<Fitted> {
+    (kappa.value.abs() > 4.0 * kappa.sigma && kappa.value.abs() > 1e-4).then(|| Fitted {
+        value: 1.0 / kappa.value,
+        sigma: kappa.sigma / (kappa.value * kappa.value),
+    })
+}
+
+/// A view's map as config: a matrix, or where perspective was found the pinhole
+/// [[m1 − u0·κ·f, u0], [m2 − v0·κ·f, v0], [−κ·f, 1]] (camera at 1/κ along f).
+fn view_geometry(
+    region: [u32; 4],
+    m: [[f64; 3]; 2],
+    origin: [f64; 2],
+    kind: ViewKind,
+    kappa: Fitted,
+) -> ViewGeometry {
+    if distance(kappa).is_none() {
+        return ViewGeometry::affine(region, m, origin);
+    }
+    let (k, f) = (kappa.value, facing_of(&m, kind));
+    let row = |r: [f64; 3], o: f64| [0, 1, 2].map(|i| r[i] - o * k * f[i]);
+    let [a, b] = [row(m[0], origin[0]), row(m[1], origin[1])];
+    ViewGeometry {
+        region,
+        projection: Some([
+            [a[0], a[1], a[2], origin[0]],
+            [b[0], b[1], b[2], origin[1]],
+            [-k * f[0], -k * f[1], -k * f[2], 1.0],
+        ]),
+        ..Default::default()
+    }
+}
+
+/// The unit vector from the scene towards a view's camera, from its map's rows (u × v is the
+/// line of sight for a camera, reversed by a mirror).
+fn facing_of(m: &[[f64; 3]; 2], kind: ViewKind) -> V3 {
+    let c = V3::from(m[0]).cross(&V3::from(m[1])).normalize();
+    match kind {
+        ViewKind::Direct => -c,
+        ViewKind::Mirror => c,
+    }
+}
+
+/// M = s·N·Qᵀ: the nominal mirror rows N = [[sx, 0, 0], [0, 0, f]] (u along ±x, v along ±z)
+/// with the view turned by Q, the rotation by `turn` rad about world (x, y, z).
+fn mirror_matrix(s: f64, turn: [f64; 3], sx: f64, f: f64) -> [[f64; 3]; 2] {
+    let q = nalgebra::Rotation3::from_scaled_axis(V3::from(turn));
+    let n = [V3::new(sx, 0.0, 0.0), V3::new(0.0, 0.0, f)];
+    n.map(|r| {
+        let t = q * r;
+        [s * t.x, s * t.y, s * t.z]
+    })
 }
 
 /// Median imaged diameter over the true one, px/mm, with σ from the spread.
@@ -337,9 +579,15 @@ struct FlightPoint {
 struct Bundle {
     direct_scale: Fitted,
     direct_roll: Fitted,
+    /// Inverse camera distance of [direct, mirror], 1/mm.
+    kappa: [Fitted; 2],
     mirror: Option<MirrorFit>,
     residual_rms_px: [f64; 2],
 }
+
+/// (parameter, σ) of the bundle's priors: the mirror's turns about x, y, z (rad) and the two
+/// cameras' 1/distance (1/mm).
+const PRIORS: [(usize, f64); 5] = [(3, 0.0873), (4, 0.0873), (5, 0.0873), (7, 0.01), (8, 0.01)];
 
 /// Direct view: M = s·[[cos φ, −sin φ, 0], [−sin φ, −cos φ, 0]] (φ: gravity's image turned
 /// from straight down towards +u).
@@ -350,7 +598,7 @@ fn direct_matrix(s: f64, phi: f64) -> [[f64; 3]; 2] {
 
 /// Both views fitted together (a small bundle adjustment): every flight is a ballistic
 /// trajectory with g known (x, z straight lines, y a parabola), seen by the direct view through
-/// (s_d, φ_d) and by the mirror through (s_m, φ_m, τ, o_u). Held: the direct view's origin and
+/// (s_d, φ_d) and by the mirror through its scale, its turn about x, y and z, and o_u. Held: the direct view's origin and
 /// the mirror's v offset (the world origin, a choice), the mirror's flips.
 #[allow(clippy::too_many_arguments)]
 fn fit_bundle(
@@ -398,15 +646,17 @@ fn fit_bundle(
     let (f, ov) = provisional_mirror
         .map(|v| (z_sign(v), v.origin_px[1]))
         .unwrap_or((1.0, 0.0));
-    // Parameters: s_d, φ_d, s_m, φ_m, τ, o_u, then (x0, vx, y0, vy, z0, vz) per flight.
-    let nv = 6;
+    // Parameters: s_d, φ_d, s_m, the mirror's turn about x, y, z, o_u, the direct and the
+    // mirror camera's inverse distance κ (1/mm; 0 is orthographic), then
+    // (x0, vx, y0, vy, z0, vz) per flight.
+    let nv = 9;
     let np = nv + 6 * flights.len();
     let mut th = DVector::zeros(np);
     th[0] = start.0;
     th[1] = start.1;
     if let Some(v) = provisional_mirror {
         th[2] = v.px_per_mm;
-        th[5] = v.origin_px[0];
+        th[6] = v.origin_px[0];
     }
     let slot = |k: usize| flights.iter().position(|&x| x == k).unwrap_or(0);
     // Starting trajectories: the direct view inverted with the starting map; z from the
@@ -459,8 +709,18 @@ fn fit_bundle(
         .unwrap_or(1.0);
     let residuals = |th: &DVector<f64>| -> DVector<f64> {
         let md = direct_matrix(th[0], th[1]);
-        let mm = mirror_matrix(th[2], th[3], th[4], sx, f);
-        let mut r = DVector::zeros(2 * pts.len());
+        let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], sx, f);
+        let (fd, fm) = (
+            facing_of(&md, ViewKind::Direct),
+            facing_of(&mm, ViewKind::Mirror),
+        );
+        let mut r = DVector::zeros(2 * pts.len() + PRIORS.len());
+        // Weak priors keep what the flights cannot tell apart sane (and its σ honest): each
+        // of the mirror's turns 0 ± 5°, each camera's 1/distance 0 ± 0.01 /mm; a row weighs as
+        // an image residual of 0.03 px does.
+        for (j, &(c, sigma)) in PRIORS.iter().enumerate() {
+            r[2 * pts.len() + j] = th[c] / sigma * 0.03;
+        }
         for (i, p) in pts.iter().enumerate() {
             let b = nv + 6 * slot(p.flight);
             let t = p.dt;
@@ -469,41 +729,71 @@ fn fit_bundle(
                 th[b + 2] + th[b + 3] * t - 0.5 * g * t * t,
                 th[b + 4] + th[b + 5] * t,
             ];
-            let (m, o) = if p.view == 0 {
-                (&md, origin_direct)
+            let (m, o, facing, kappa) = if p.view == 0 {
+                (&md, origin_direct, fd, th[7])
             } else {
-                (&mm, [th[5], ov])
+                (&mm, [th[6], ov], fm, th[8])
             };
+            let k = 1.0 / (1.0 - kappa * facing.dot(&V3::from(w)));
             for c in 0..2 {
-                r[2 * i + c] = p.q[c] - (m[c][0] * w[0] + m[c][1] * w[1] + m[c][2] * w[2] + o[c]);
+                r[2 * i + c] =
+                    p.q[c] - (k * (m[c][0] * w[0] + m[c][1] * w[1] + m[c][2] * w[2]) + o[c]);
             }
         }
         r
     };
     // Without a mirror its parameters are held (their columns left out).
     let free: Vec<usize> = (0..np)
-        .filter(|&c| with_mirror || !(2..6).contains(&c))
+        .filter(|&c| with_mirror || !(2..nv).contains(&c))
         .filter(|&c| with_mirror || (c < nv || (c - nv) % 6 < 4))
         .collect();
-    let mut jac = DMatrix::zeros(2 * pts.len(), free.len());
-    for _ in 0..30 {
+    // Levenberg–Marquardt: Gauss–Newton steps, damped where they would not lower the cost.
+    let mut jac = DMatrix::zeros(2 * pts.len() + PRIORS.len(), free.len());
+    let mut lambda = 1e-3;
+    for _ in 0..60 {
         let r0 = residuals(&th);
+        let cost0 = r0.norm_squared();
         for (jc, &c) in free.iter().enumerate() {
-            let h = 1e-6 * th[c].abs().max(1e-3);
+            let h = 1e-6 * th[c].abs().max(1e-4);
             let mut t2 = th.clone();
             t2[c] += h;
             jac.set_column(jc, &((residuals(&t2) - &r0) / h));
         }
-        let step = (jac.transpose() * &jac)
-            .try_inverse()
-            .map(|inv| -(inv * jac.transpose() * &r0))
-            .ok_or("the fit is degenerate: the flights do not tell the views apart")?;
-        for (jc, &c) in free.iter().enumerate() {
-            th[c] += step[jc];
+        let a = jac.transpose() * &jac;
+        let grad = jac.transpose() * &r0;
+        let mut moved = None;
+        while lambda < 1e12 {
+            let mut damped = a.clone();
+            for d in 0..damped.nrows() {
+                damped[(d, d)] += lambda * a[(d, d)].max(1e-12);
+            }
+            let Some(step) = damped.try_inverse().map(|inv| -(inv * &grad)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut trial = th.clone();
+            for (jc, &c) in free.iter().enumerate() {
+                trial[c] += step[jc];
+            }
+            if residuals(&trial).norm_squared() <= cost0 {
+                th = trial;
+                lambda = (lambda / 10.0).max(1e-9);
+                moved = Some(step.amax());
+                break;
+            }
+            lambda *= 10.0;
         }
-        if step.amax() < 1e-10 {
-            break;
+        match moved {
+            Some(m) if m > 1e-10 => {}
+            _ => break,
         }
+    }
+    let r0 = residuals(&th);
+    for (jc, &c) in free.iter().enumerate() {
+        let h = 1e-6 * th[c].abs().max(1e-4);
+        let mut t2 = th.clone();
+        t2[c] += h;
+        jac.set_column(jc, &((residuals(&t2) - &r0) / h));
     }
     let r = residuals(&th);
     let dof = (r.len() as f64 - free.len() as f64).max(1.0);
@@ -538,18 +828,21 @@ fn fit_bundle(
     Ok(Bundle {
         direct_scale: fitted(0, 1.0),
         direct_roll: fitted(1, deg),
+        kappa: [fitted(7, 1.0), fitted(8, 1.0)],
         mirror: with_mirror.then(|| MirrorFit {
             scale: fitted(2, 1.0),
             scale_from_diameter: Fitted {
                 value: f64::NAN,
                 sigma: f64::NAN,
             },
-            roll_deg: fitted(3, deg),
-            tilt_deg: fitted(4, deg),
-            origin_u_px: fitted(5, 1.0),
+            tilt_deg: fitted(3, deg),
+            roll_deg: fitted(4, deg),
+            yaw_deg: fitted(5, deg),
+            origin_u_px: fitted(6, 1.0),
             x_reversed: sx < 0.0,
             residual_rms_px: rms(1),
             points: mirror_points,
+            camera_distance_mm: None,
         }),
         residual_rms_px: [rms(0), rms(1)],
     })
@@ -574,14 +867,22 @@ impl Calibrated {
             p(&d.roll_deg, "deg", 3),
             d.residual_rms_px
         );
+        let persp = |d: &Option<Fitted>| match d {
+            Some(d) => format!("a pinhole {}", p(d, "mm away", 0)),
+            None => "no perspective found (orthographic)".into(),
+        };
+        out += &format!("#   direct camera: {}\n", persp(&d.camera_distance_mm));
         if let Some(m) = &self.mirror {
+            out += &format!("#   mirror camera: {}\n", persp(&m.camera_distance_mm));
             out += &format!(
-                "# mirror: scale {} (diameter: {}); roll {}; tilt {} (the view turned about x,\n\
-                 #   twice the mirror's tilt from 45°); x {}; origin u {}; residuals {:.3} px RMS over {} centres\n",
+                "# mirror: scale {} (diameter: {}); turned about x (tilt, twice the mirror's from 45°)\n\
+                 #   {}, about y (roll) {}, about z (yaw) {}; x {}; origin u {};\n\
+                 #   residuals {:.3} px RMS over {} centres\n",
                 p(&m.scale, "px/mm", 4),
                 p(&m.scale_from_diameter, "px/mm", 4),
-                p(&m.roll_deg, "deg", 3),
                 p(&m.tilt_deg, "deg", 3),
+                p(&m.roll_deg, "deg", 3),
+                p(&m.yaw_deg, "deg", 3),
                 if m.x_reversed { "reversed" } else { "not reversed" },
                 p(&m.origin_u_px, "px", 2),
                 m.residual_rms_px,
@@ -593,6 +894,19 @@ impl Calibrated {
             ("mirror", &self.geometry.mirror),
         ] {
             let Some(v) = v else { continue };
+            if let Some(p) = v.projection {
+                let row =
+                    |r: [f64; 4]| format!("[{:.6}, {:.6}, {:.9}, {:.4}]", r[0], r[1], r[2], r[3]);
+                let row3 =
+                    |r: [f64; 4]| format!("[{:.9}, {:.9}, {:.9}, {:.1}]", r[0], r[1], r[2], r[3]);
+                out +=
+                    &format!(
+                    "\n[geometry.{name}]\nregion = [{}, {}, {}, {}]\nprojection = [{}, {}, {}]\n",
+                    v.region[0], v.region[1], v.region[2], v.region[3],
+                    row(p[0]), row(p[1]), row3(p[2])
+                );
+                continue;
+            }
             let (Some(m), Some(o)) = (v.matrix_px_per_mm, v.origin_px) else {
                 continue;
             };

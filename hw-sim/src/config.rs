@@ -85,6 +85,9 @@ pub struct LabConfig {
     /// The mirror is turned away from 45° about the world x axis by this much, deg: the mirror
     /// view turns by twice the angle (its v axis takes in world y).
     pub mirror_tilt_deg: f64,
+    /// Every view becomes a pinhole camera this far from the world origin, mm (the mirror's
+    /// virtual camera too); absent: orthographic, as before.
+    pub perspective_distance_mm: Option<f64>,
     /// How the rig looks (light, surface, paint, clutter, focus); absent = the original render.
     pub look: Option<Look>,
     /// Draw the look at random from this family and the seed (`Look::FAMILIES`, or "varied");
@@ -126,6 +129,7 @@ impl Default for LabConfig {
             mirror_offset_error_px: [0.0, 0.0],
             camera_roll_deg: 0.0,
             mirror_tilt_deg: 0.0,
+            perspective_distance_mm: None,
             look: None,
             look_family: None,
         }
@@ -234,6 +238,9 @@ impl LabConfig {
         range("mirror_scale_error", self.mirror_scale_error, -0.2, 0.2)?;
         range("camera_roll_deg", self.camera_roll_deg, -10.0, 10.0)?;
         range("mirror_tilt_deg", self.mirror_tilt_deg, -10.0, 10.0)?;
+        if let Some(d) = self.perspective_distance_mm {
+            range("perspective_distance_mm", d, 100.0, 1e5)?;
+        }
         range(
             "mirror_offset_error_px[0]",
             self.mirror_offset_error_px[0],
@@ -266,9 +273,33 @@ pub struct ViewSpec {
     /// World unit vector from the scene towards this view's (virtual) camera: the visible
     /// hemisphere.
     pub facing: [f64; 3],
+    /// A pinhole camera this far from the world origin along `facing`, mm (`px_per_mm` is then
+    /// the scale on the plane through the origin square to the line of sight); None:
+    /// orthographic.
+    pub distance_mm: Option<f64>,
 }
 
 impl ViewSpec {
+    /// The pinhole's 3×4 projection, world mm → homogeneous px (DLT convention, p34 = 1);
+    /// None for an orthographic view.
+    pub fn projection(&self) -> Option<[[f64; 4]; 3]> {
+        let d = self.distance_mm?;
+        let (s, f, o) = (self.px_per_mm, self.facing, self.origin_px);
+        let row = |a: [f64; 3], o: f64| {
+            [
+                s * a[0] - o * f[0] / d,
+                s * a[1] - o * f[1] / d,
+                s * a[2] - o * f[2] / d,
+                o,
+            ]
+        };
+        Some([
+            row(self.u_axis, o[0]),
+            row(self.v_axis, o[1]),
+            [-f[0] / d, -f[1] / d, -f[2] / d, 1.0],
+        ])
+    }
+
     /// [u, v] = M·p + origin_px, M in px per mm.
     pub fn matrix_px_per_mm(&self) -> [[f64; 3]; 2] {
         [

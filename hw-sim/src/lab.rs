@@ -39,6 +39,9 @@ impl SimLab {
             v.origin_px[1] += cfg.mirror_offset_error_px[1];
             v.turn_about_x(2.0 * cfg.mirror_tilt_deg.to_radians());
         }
+        for v in scene.views.iter_mut() {
+            v.distance_mm = cfg.perspective_distance_mm;
+        }
         if cfg.camera_roll_deg != 0.0 {
             let centre = [
                 (f64::from(scene.width) - 1.0) / 2.0,
@@ -170,7 +173,7 @@ impl SimLab {
                             .iter()
                             .map(|view| {
                                 let (u, vv) = project(view, &bodies[i].pos_mm);
-                                (view.name.clone(), json!({"centre_px": [u, vv], "diameter_px": 2.0 * bodies[i].radius_mm * view.px_per_mm}))
+                                (view.name.clone(), json!({"centre_px": [u, vv], "diameter_px": 2.0 * crate::render::radius_px(view, &bodies[i].pos_mm, bodies[i].radius_mm)}))
                             })
                             .collect();
                         json!({
@@ -215,7 +218,13 @@ impl SimLab {
             .scene
             .views
             .iter()
-            .map(|view| (view.name.clone(), json!({"matrix_px_per_mm": view.matrix_px_per_mm(), "origin_px": view.origin_px})))
+            .map(|view| {
+                let map = match view.projection() {
+                    Some(p) => json!({"projection": p}),
+                    None => json!({"matrix_px_per_mm": view.matrix_px_per_mm(), "origin_px": view.origin_px}),
+                };
+                (view.name.clone(), map)
+            })
             .collect();
         truth["geometry"] = Value::Object(maps);
         truth

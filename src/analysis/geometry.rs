@@ -143,6 +143,37 @@ impl View {
         }
     }
 
+    /// The map near world point `p`: its Jacobian (px per mm) and the unit vector from `p`
+    /// towards the (virtual) camera, i.e. the hemisphere a sphere at `p` shows. The same
+    /// everywhere for an affine view; for a pinhole the scale grows towards the camera and the
+    /// line of sight turns across the view.
+    pub fn local_at(&self, p: &V3) -> (Matrix2x3<f64>, V3) {
+        match &self.map {
+            Map::Affine { m, .. } => (*m, self.facing),
+            Map::Pinhole { p: pm } => {
+                let w = (pm.row(2).columns(0, 3) * p)[0] + pm[(2, 3)];
+                let q = self.project(p);
+                let j = Matrix2x3::from_fn(|i, k| (pm[(i, k)] - q[i] * pm[(2, k)]) / w);
+                let m3 = pm.fixed_columns::<3>(0).into_owned();
+                let toward = m3
+                    .try_inverse()
+                    .map(|inv| -(inv * pm.column(3)))
+                    .map(|c| c - p)
+                    .filter(|d| d.norm() > 0.0)
+                    .map(|d| d.normalize())
+                    .unwrap_or(self.facing);
+                // The camera's side is the one the view faces (a virtual camera behind the
+                // mirror included).
+                let toward = if toward.dot(&self.facing) < 0.0 {
+                    -toward
+                } else {
+                    toward
+                };
+                (j, toward)
+            }
+        }
+    }
+
     /// The two linear equations A·p = b in world mm that an image point puts on the point it
     /// images, in px (a pinhole's rows divided by the homogeneous depth at `near`, so that all
     /// views' rows weigh alike).
@@ -300,6 +331,7 @@ pub fn sim_view(v: &View) -> hw_sim::ViewSpec {
         u_axis: v.u_axis.into(),
         v_axis: v.v_axis.into(),
         facing: v.facing.into(),
+        distance_mm: None,
     }
 }
 

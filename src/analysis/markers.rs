@@ -203,6 +203,38 @@ pub fn lift(
     })
 }
 
+/// As `lift`, for a sphere whose centre is known to be at world point `at`: the dot's offset is
+/// read through the view's map there (a pinhole's scale and line of sight at the sphere, an
+/// affine matrix as it is) instead of the view's scale and axes at the origin. Aligned views are
+/// lifted exactly as by `lift`.
+pub fn lift_at(
+    view: &View,
+    dot_px: [f64; 2],
+    centre_px: [f64; 2],
+    radius_mm: f64,
+    at: &V3,
+) -> Option<MarkerObs> {
+    if view.aligned {
+        return lift(view, dot_px, centre_px, radius_mm);
+    }
+    let (j, toward) = view.local_at(at);
+    let jjt = j * j.transpose();
+    let inv = jjt.try_inverse()?;
+    let d = nalgebra::Vector2::new(dot_px[0] - centre_px[0], dot_px[1] - centre_px[1]);
+    // The offset in the plane square to the line of sight (J's row space).
+    let across: V3 = j.transpose() * (inv * d);
+    let rho2 = across.norm_squared();
+    if rho2 > (MAX_RHO_FRACTION * radius_mm).powi(2) {
+        return None;
+    }
+    let depth = (radius_mm * radius_mm - rho2).max(0.0).sqrt();
+    Some(MarkerObs {
+        centre_px: dot_px,
+        rel_mm: across + toward * depth,
+        weight: (depth / radius_mm).powi(2),
+    })
+}
+
 /// The sphere's own shading under its markers: grey = a + b·n + c·n² + d·x + f·y, with n the
 /// surface normal's component towards the camera (√(1 − ρ²/R²)) and x, y the image offsets over
 /// R (light from one side). Fitted to the disc's pixels by least squares, dropping pixels far

@@ -179,7 +179,7 @@ pub(super) fn relift_on_trajectories(
                 m.markers = m
                     .markers
                     .iter()
-                    .filter_map(|mk| markers::lift(view, mk.centre_px, c, radii[s]))
+                    .filter_map(|mk| markers::lift_at(view, mk.centre_px, c, radii[s], &p))
                     .collect();
             }
         }

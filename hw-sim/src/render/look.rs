@@ -177,28 +177,19 @@ impl LookState {
         su: f64,
         sv: f64,
     ) -> Option<(f64, usize, bool)> {
-        let ua = V3::from(view.u_axis);
-        let va = V3::from(view.v_axis);
-        let facing = V3::from(view.facing);
         let mut best: Option<(f64, V3, usize, &Pose)> = None;
         for (i, p) in pose.iter().enumerate() {
             // A sphere still inside its (opaque) tube is not seen.
             if self.inside_tube(&p.centre_mm) {
                 continue;
             }
-            let (cu, cv) = project(view, &p.centre_mm);
-            let r_px = p.radius_mm * view.px_per_mm;
-            let (du, dv) = (su - cu, sv - cv);
-            let rho2 = (du * du + dv * dv) / (r_px * r_px);
-            if rho2 >= 1.0 {
+            let Some((depth, normal, _)) = super::hit(view, &p.centre_mm, p.radius_mm, su, sv)
+            else {
                 continue;
-            }
-            let nz = (1.0 - rho2).sqrt();
-            let depth = p.centre_mm.dot(&facing) + p.radius_mm * nz;
+            };
             if best.is_some_and(|(d, ..)| d >= depth) {
                 continue;
             }
-            let normal = (ua * du + va * dv) / r_px + facing * nz;
             best = Some((depth, normal, i, p));
         }
         let (_, n, i, p) = best?;

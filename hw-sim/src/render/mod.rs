@@ -259,7 +259,7 @@ impl Renderer {
             let (mut bu0, mut bv0, mut bu1, mut bv1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
             for p in poses {
                 let (u, v) = project(view, &p[s].centre_mm);
-                let r = p[s].radius_mm * view.px_per_mm + 1.5;
+                let r = radius_px(view, &p[s].centre_mm, p[s].radius_mm) + 1.5;
                 bu0 = bu0.min((u - r).floor() as i64);
                 bv0 = bv0.min((v - r).floor() as i64);
                 bu1 = bu1.max((u + r).ceil() as i64);
@@ -427,7 +427,7 @@ fn discs_in(view: &ViewSpec, poses: &[[Pose; 2]]) -> Vec<(f64, f64, f64)> {
         .flat_map(|p| p.iter())
         .map(|s| {
             let (u, v) = project(view, &s.centre_mm);
-            (u, v, s.radius_mm * view.px_per_mm)
+            (u, v, radius_px(view, &s.centre_mm, s.radius_mm))
         })
         .collect()
 }
@@ -436,10 +436,69 @@ fn discs_in(view: &ViewSpec, poses: &[[Pose; 2]]) -> Vec<(f64, f64, f64)> {
 pub fn project(view: &ViewSpec, p: &V3) -> (f64, f64) {
     let ua = V3::from(view.u_axis);
     let va = V3::from(view.v_axis);
+    let Some(d) = view.distance_mm else {
+        return (
+            view.origin_px[0] + view.px_per_mm * ua.dot(p),
+            view.origin_px[1] + view.px_per_mm * va.dot(p),
+        );
+    };
+    let k = view.px_per_mm * d / (d - V3::from(view.facing).dot(p));
     (
-        view.origin_px[0] + view.px_per_mm * ua.dot(p),
-        view.origin_px[1] + view.px_per_mm * va.dot(p),
+        view.origin_px[0] + k * ua.dot(p),
+        view.origin_px[1] + k * va.dot(p),
     )
+}
+
+/// Radius in px of a sphere's image centred at world point `c` (under perspective, that of
+/// the disc at its depth; its outline is an ellipse a little larger, by the square of the angle
+/// off the axis).
+pub fn radius_px(view: &ViewSpec, c: &V3, radius_mm: f64) -> f64 {
+    match view.distance_mm {
+        None => radius_mm * view.px_per_mm,
+        Some(d) => radius_mm * view.px_per_mm * d / (d - V3::from(view.facing).dot(c)),
+    }
+}
+
+/// Where the line of sight through image point (su, sv) meets a sphere: (depth towards the
+/// camera, larger is nearer; the unit normal there; its cosine to the line of sight back to the
+/// camera), or None where it misses. Orthographic views keep the original arithmetic.
+pub(crate) fn hit(
+    view: &ViewSpec,
+    c: &V3,
+    radius_mm: f64,
+    su: f64,
+    sv: f64,
+) -> Option<(f64, V3, f64)> {
+    let ua = V3::from(view.u_axis);
+    let va = V3::from(view.v_axis);
+    let facing = V3::from(view.facing);
+    let Some(d) = view.distance_mm else {
+        let (cu, cv) = project(view, c);
+        let r_px = radius_mm * view.px_per_mm;
+        let (du, dv) = (su - cu, sv - cv);
+        let rho2 = (du * du + dv * dv) / (r_px * r_px);
+        if rho2 >= 1.0 {
+            return None;
+        }
+        let nz = (1.0 - rho2).sqrt();
+        let depth = c.dot(&facing) + radius_mm * nz;
+        let normal = (ua * du + va * dv) / r_px + facing * nz;
+        return Some((depth, normal, nz));
+    };
+    // The ray from the pinhole through the image point's spot on the plane through the origin.
+    let cam = facing * d;
+    let spot = ua * ((su - view.origin_px[0]) / view.px_per_mm)
+        + va * ((sv - view.origin_px[1]) / view.px_per_mm);
+    let dir = (spot - cam).normalize();
+    let oc = cam - c;
+    let b = dir.dot(&oc);
+    let disc = b * b - (oc.norm_squared() - radius_mm * radius_mm);
+    if disc <= 0.0 {
+        return None;
+    }
+    let t = -b - disc.sqrt();
+    let normal = (cam + dir * t - c) / radius_mm;
+    Some((-t, normal, -normal.dot(&dir)))
 }
 
 /// Grey level of the nearest sphere surface under image point (su, sv) and which surface it is,
@@ -451,21 +510,11 @@ fn shade(
     su: f64,
     sv: f64,
 ) -> Option<(f64, Surface)> {
-    let ua = V3::from(view.u_axis);
-    let va = V3::from(view.v_axis);
-    let facing = V3::from(view.facing);
     let mut best: Option<(f64, f64, Surface)> = None; // (depth towards camera, grey, surface)
     for (i, p) in pose.iter().enumerate() {
-        let (cu, cv) = project(view, &p.centre_mm);
-        let r_px = p.radius_mm * view.px_per_mm;
-        let (du, dv) = (su - cu, sv - cv);
-        let rho2 = (du * du + dv * dv) / (r_px * r_px);
-        if rho2 >= 1.0 {
+        let Some((depth, normal, nz)) = hit(view, &p.centre_mm, p.radius_mm, su, sv) else {
             continue;
-        }
-        let nz = (1.0 - rho2).sqrt();
-        let normal = (ua * du + va * dv) / r_px + facing * nz;
-        let depth = p.centre_mm.dot(&facing) + p.radius_mm * nz;
+        };
         if best.is_some_and(|(d, _, _)| d >= depth) {
             continue;
         }
@@ -537,6 +586,7 @@ mod golden {
             u_axis: [1.0, 0.0, 0.0],
             v_axis: [0.0, -1.0, 0.0],
             facing: [0.0, 0.0, 1.0],
+            distance_mm: None,
         };
         let scene = Scene {
             width: 96,
