@@ -65,6 +65,8 @@ pub struct MirrorFit {
 #[derive(Clone, Debug)]
 pub struct Calibrated {
     pub source: String,
+    /// Recordings whose flights were fitted together.
+    pub recordings: usize,
     pub frames: usize,
     /// The frame nearest the impact (drawn in the PNG).
     pub impact_frame: usize,
@@ -96,18 +98,45 @@ pub fn calibrate_path(
     path: &std::path::Path,
     cfg: Option<&Config>,
 ) -> Result<(Calibrated, Vec<u8>), crate::experiment::ExperimentError> {
-    let mut src = analysis::source::open(path, cfg.map(|c| c.camera.frame_rate_hz))?;
+    calibrate_paths(&[path.to_path_buf()], cfg)
+}
+
+/// As `calibrate_path`, pooling the flights of several recordings of one rig (the first sets
+/// the provisional scale; the config is the first session's own when none is given).
+pub fn calibrate_paths(
+    paths: &[std::path::PathBuf],
+    cfg: Option<&Config>,
+) -> Result<(Calibrated, Vec<u8>), crate::experiment::ExperimentError> {
+    let first = paths.first().ok_or_else(|| AnalysisError::Input {
+        source_name: "calibrate".into(),
+        message: "no recording given".into(),
+    })?;
+    let mut sources = Vec::new();
+    for p in paths {
+        sources.push(analysis::source::open(
+            p,
+            cfg.map(|c| c.camera.frame_rate_hz),
+        )?);
+    }
     let cfg = match cfg {
         Some(c) => c.clone(),
-        None => src
+        None => sources[0]
             .recorded_config()
             .cloned()
             .unwrap_or_else(Config::default_config),
     };
-    let cal = calibrate(src.as_mut(), &cfg).map_err(|e| AnalysisError::Input {
-        source_name: path.display().to_string(),
-        message: e.to_string(),
-    })?;
+    let cal = {
+        let mut refs: Vec<&mut dyn FrameSource> = sources
+            .iter_mut()
+            .map(|s| s.as_mut() as &mut dyn FrameSource)
+            .collect();
+        calibrate(&mut refs, &cfg).map_err(|e| AnalysisError::Input {
+            source_name: first.display().to_string(),
+            message: e.to_string(),
+        })?
+    };
+    let src = &mut sources[0];
+    let path = first;
     let mut img = analysis::image::GreyImage::new();
     src.read(cal.impact_frame, &mut img)?;
     let png = cal.png(&img).map_err(|message| AnalysisError::Input {
@@ -117,8 +146,17 @@ pub fn calibrate_path(
     Ok((cal, png))
 }
 
-/// Fits the views' maps from one recording.
-pub fn calibrate(src: &mut dyn FrameSource, cfg: &Config) -> Result<Calibrated, CalibrateError> {
+/// Fits the views' maps from one or more recordings of one rig (the first sets the
+/// provisional scale; the flights of all are fitted together).
+pub fn calibrate(
+    sources: &mut [&mut dyn FrameSource],
+    cfg: &Config,
+) -> Result<Calibrated, CalibrateError> {
+    let (src, others) = sources.split_first_mut().ok_or(CalibrateError::Data {
+        source_name: "calibrate".into(),
+        message: "no recording given".into(),
+    })?;
+    let src: &mut dyn FrameSource = &mut **src;
     let name = src.source().name;
     let data = |message: String| CalibrateError::Data {
         source_name: name.clone(),
@@ -127,44 +165,26 @@ pub fn calibrate(src: &mut dyn FrameSource, cfg: &Config) -> Result<Calibrated, 
     let Some(direct_cfg) = cfg.geometry.direct.clone() else {
         return Err(CalibrateError::NoDirectView { source_name: name });
     };
-    // The provisional scales from the blobs' size where the config's are off by more than 5 %:
-    // the analysis takes a disc more than 10 % from its expected radius for something else.
-    let mut cfg = cfg.clone();
-    let mean_diameter_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
+    // Where the spheres are, before any geometry is trusted: every view's whole blobs.
     let survey =
-        analysis::blob_survey(src, &cfg, 60).map_err(|cause| CalibrateError::Provisional {
+        analysis::blob_survey(src, cfg, 60).map_err(|cause| CalibrateError::Provisional {
             source_name: name.clone(),
             cause,
         })?;
-    let kinds: Vec<ViewKind> = analysis::geometry::views(&cfg)
+    let kinds: Vec<ViewKind> = analysis::geometry::views(cfg)
         .iter()
         .map(|v| v.kind)
         .collect();
-    for (vi, kind) in kinds.iter().enumerate() {
-        let mut d: Vec<f64> = survey
-            .iter()
-            .flat_map(|f| f[vi].iter().map(|b| b.1))
-            .collect();
-        if d.len() < 3 {
-            continue;
-        }
-        d.sort_by(f64::total_cmp);
-        let slot = match kind {
-            ViewKind::Direct => &mut cfg.geometry.direct,
-            ViewKind::Mirror => &mut cfg.geometry.mirror,
-        };
-        if let Some(v) = slot.as_mut() {
-            rescale_provisional(v, d[d.len() / 2] / mean_diameter_mm);
-        }
-    }
+    let di = kinds
+        .iter()
+        .position(|k| *k == ViewKind::Direct)
+        .ok_or_else(|| data("no direct view".into()))?;
+    let mi = kinds.iter().position(|k| *k == ViewKind::Mirror);
     // The mirror's x against the direct view's: where each view shows the same number of
     // blobs (one or two), paired in order of u; u_mirror = a·u_direct + b gives the mirror's
     // scale along x (and whether it reverses x) and the u offset that makes the two x agree, so
     // that the spheres are labelled alike in both views.
-    if let (Some(di), Some(mi)) = (
-        kinds.iter().position(|k| *k == ViewKind::Direct),
-        kinds.iter().position(|k| *k == ViewKind::Mirror),
-    ) {
+    let mirror_line = mi.and_then(|mi| {
         let mut pairs = Vec::new();
         for f in &survey {
             let (mut d, mut m) = (f[di].clone(), f[mi].clone());
@@ -175,28 +195,93 @@ pub fn calibrate(src: &mut dyn FrameSource, cfg: &Config) -> Result<Calibrated, 
             m.sort_by(|p, q| p.0[0].total_cmp(&q.0[0]));
             pairs.extend(d.iter().zip(&m).map(|(p, q)| (p.0[0], q.0[0])));
         }
-        if let (Some(fit), Some(dg), Some(mg)) = (
-            line_fit(&pairs),
-            cfg.geometry.direct.clone(),
-            cfg.geometry.mirror.as_mut(),
-        ) {
-            align_mirror(&dg, mg, fit);
+        line_fit(&pairs)
+    });
+    // The direct view's scale must be within 10 % for its discs to be taken for spheres. Tried
+    // in turn: the config's, then the blobs' median size (which the light biases: a highlight
+    // raises the threshold and shrinks the blob) and 15 % either side of it.
+    let mean_diameter_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
+    let config_scale = local_scale(&direct_cfg).unwrap_or(1.0);
+    let mut scales = vec![config_scale];
+    let mut sizes: Vec<f64> = survey
+        .iter()
+        .flat_map(|f| f[di].iter().map(|b| b.1))
+        .collect();
+    if sizes.len() >= 3 {
+        sizes.sort_by(f64::total_cmp);
+        let blob = sizes[sizes.len() / 2] / mean_diameter_mm;
+        for k in [1.0, 1.15, 1.0 / 1.15] {
+            let c = blob * k;
+            if scales.iter().all(|x| (c / x - 1.0).abs() > 0.05) {
+                scales.push(c);
+            }
         }
     }
+    let mut tried = Vec::new();
+    let mut found = None;
+    for s_d in scales {
+        let mut trial = cfg.clone();
+        if let Some(v) = trial.geometry.direct.as_mut() {
+            set_scale(v, s_d);
+        }
+        let direct_now = trial.geometry.direct.clone();
+        if let (Some(m), Some(d)) = (trial.geometry.mirror.as_mut(), direct_now.as_ref()) {
+            match mirror_line {
+                Some(line) => align_mirror(d, m, line),
+                None => {
+                    let ratio = local_scale(m).unwrap_or(config_scale) / config_scale;
+                    set_scale(m, s_d * ratio);
+                }
+            }
+        }
+        let attempt = analysis::measure(src, &trial)
+            .map_err(|e| e.to_string())
+            .and_then(|(views, obs)| {
+                let (split, phases) = flights(&obs, di)?;
+                Ok((views, obs, split, phases))
+            });
+        match attempt {
+            Ok(ok) => {
+                found = Some((trial, ok));
+                break;
+            }
+            Err(e) => tried.push(format!("at {s_d:.3} px/mm: {e}")),
+        }
+    }
+    let Some((cfg, (views, obs, split_frame, phases))) = found else {
+        return Err(data(format!(
+            "no provisional scale gives flights in the direct view ({})",
+            tried.join("; ")
+        )));
+    };
     let cfg = &cfg;
-    let (views, obs) =
-        analysis::measure(src, cfg).map_err(|cause| CalibrateError::Provisional {
-            source_name: name.clone(),
-            cause,
+    // The other recordings, measured with the same provisional geometry; their frames follow
+    // the first's, their flights too (four per recording: sphere k % 2).
+    let (mut obs, mut phases) = (obs, phases.to_vec());
+    let mut used = 1;
+    for other in others.iter_mut() {
+        let other: &mut dyn FrameSource = &mut **other;
+        let oname = other.source().name;
+        let (_, o) =
+            analysis::measure(other, cfg).map_err(|cause| CalibrateError::Provisional {
+                source_name: oname.clone(),
+                cause,
+            })?;
+        let (_, ph) = flights(&o, di).map_err(|message| CalibrateError::Data {
+            source_name: oname,
+            message,
         })?;
+        let offset = obs.len();
+        phases.extend(
+            ph.into_iter()
+                .map(|f| f.into_iter().map(|i| i + offset).collect()),
+        );
+        obs.extend(o);
+        used += 1;
+    }
     let (views, obs) = (&views, &obs);
     let g = cfg.analysis.gravity_mm_s2;
     let diam = [cfg.spheres.sphere(0).0, cfg.spheres.sphere(1).0];
-    let di = views
-        .iter()
-        .position(|v| v.kind == ViewKind::Direct)
-        .ok_or_else(|| data("no direct view".into()))?;
-    let (split_frame, phases) = flights(obs, di).map_err(&data)?;
 
     // Direct view: free fall per flight, pooled.
     let mut acc = Vec::new();
@@ -295,6 +380,7 @@ pub fn calibrate(src: &mut dyn FrameSource, cfg: &Config) -> Result<Calibrated, 
     }
     Ok(Calibrated {
         source: name,
+        recordings: used,
         frames: obs.len(),
         impact_frame: split_frame,
         direct: DirectFit {
@@ -390,7 +476,8 @@ fn parabola(pts: &[(f64, [f64; 2])]) -> Option<([[f64; 3]; 2], f64)> {
     Some((coef, (ss / (2 * pts.len()) as f64).sqrt()))
 }
 
-/// Least-squares line y = a·x + b through (x, y) pairs, when they span 20 px of x.
+/// Least-squares line y = a·x + b through (x, y) pairs, when they span 20 px of x and lie
+/// within 1.5 px RMS of it (blobs of clutter paired with spheres do not).
 fn line_fit(pairs: &[(f64, f64)]) -> Option<(f64, f64)> {
     if pairs.len() < 6 {
         return None;
@@ -404,7 +491,17 @@ fn line_fit(pairs: &[(f64, f64)]) -> Option<(f64, f64)> {
     let sxy: f64 = pairs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
     let lo = pairs.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
     let hi = pairs.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
-    (hi - lo >= 20.0 && sxx > 0.0).then(|| (sxy / sxx, my - sxy / sxx * mx))
+    if hi - lo < 20.0 || sxx <= 0.0 {
+        return None;
+    }
+    let (a, b) = (sxy / sxx, my - sxy / sxx * mx);
+    let rms = (pairs
+        .iter()
+        .map(|p| (p.1 - a * p.0 - b).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    (rms <= 1.5).then_some((a, b))
 }
 
 /// A provisional shorthand mirror made to agree with the direct view on x, from
@@ -425,16 +522,18 @@ fn align_mirror(direct: &ViewGeometry, mirror: &mut ViewGeometry, (a, b): (f64, 
     mirror.u_axis = Some(if a * sign_d < 0.0 { "-x" } else { "+x" }.into());
 }
 
-/// Sets a provisional view's scale to `px_per_mm` when its own is more than 5 % away (a
-/// projection is left as given).
-fn rescale_provisional(v: &mut ViewGeometry, px_per_mm: f64) {
-    let Some((m, _)) = v.local_affine() else {
-        return;
-    };
+/// A view's scale at the world origin, px/mm (the geometric mean of its two image axes').
+fn local_scale(v: &ViewGeometry) -> Option<f64> {
+    let (m, _) = v.local_affine()?;
     let norm = |r: &[f64; 3]| r.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let now = (norm(&m[0]) * norm(&m[1])).sqrt();
+    Some((norm(&m[0]) * norm(&m[1])).sqrt())
+}
+
+/// Sets a provisional view's scale to `px_per_mm` (a projection is left as given).
+fn set_scale(v: &mut ViewGeometry, px_per_mm: f64) {
+    let Some(now) = local_scale(v) else { return };
     let k = px_per_mm / now;
-    if !k.is_finite() || (k - 1.0).abs() <= 0.05 {
+    if !k.is_finite() {
         return;
     }
     if let Some(s) = v.px_per_mm.as_mut() {
@@ -603,7 +702,7 @@ fn direct_matrix(s: f64, phi: f64) -> [[f64; 3]; 2] {
 #[allow(clippy::too_many_arguments)]
 fn fit_bundle(
     obs: &[FrameObs],
-    phases: &[Vec<usize>; 4],
+    phases: &[Vec<usize>],
     g: f64,
     di: usize,
     mi: Option<usize>,
@@ -631,7 +730,7 @@ fn fit_bundle(
             }
         }
     }
-    let flights: Vec<usize> = (0..4)
+    let flights: Vec<usize> = (0..phases.len())
         .filter(|k| pts.iter().filter(|p| p.flight == *k && p.view == 0).count() >= 6)
         .collect();
     pts.retain(|p| flights.contains(&p.flight));
@@ -707,7 +806,11 @@ fn fit_bundle(
     let sx = provisional_mirror
         .map(|v| if v.u_axis.x < 0.0 { -1.0 } else { 1.0 })
         .unwrap_or(1.0);
+    // Points left out as outliers (a frame still in contact, a sphere still in its tube at
+    // a flight's end) weigh 0.
+    let weights = std::cell::RefCell::new(vec![1.0; pts.len()]);
     let residuals = |th: &DVector<f64>| -> DVector<f64> {
+        let weights = weights.borrow();
         let md = direct_matrix(th[0], th[1]);
         let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], sx, f);
         let (fd, fm) = (
@@ -736,8 +839,8 @@ fn fit_bundle(
             };
             let k = 1.0 / (1.0 - kappa * facing.dot(&V3::from(w)));
             for c in 0..2 {
-                r[2 * i + c] =
-                    p.q[c] - (k * (m[c][0] * w[0] + m[c][1] * w[1] + m[c][2] * w[2]) + o[c]);
+                r[2 * i + c] = weights[i]
+                    * (p.q[c] - (k * (m[c][0] * w[0] + m[c][1] * w[1] + m[c][2] * w[2]) + o[c]));
             }
         }
         r
@@ -749,43 +852,70 @@ fn fit_bundle(
         .collect();
     // Levenberg–Marquardt: Gauss–Newton steps, damped where they would not lower the cost.
     let mut jac = DMatrix::zeros(2 * pts.len() + PRIORS.len(), free.len());
-    let mut lambda = 1e-3;
-    for _ in 0..60 {
-        let r0 = residuals(&th);
-        let cost0 = r0.norm_squared();
-        for (jc, &c) in free.iter().enumerate() {
-            let h = 1e-6 * th[c].abs().max(1e-4);
-            let mut t2 = th.clone();
-            t2[c] += h;
-            jac.set_column(jc, &((residuals(&t2) - &r0) / h));
-        }
-        let a = jac.transpose() * &jac;
-        let grad = jac.transpose() * &r0;
-        let mut moved = None;
-        while lambda < 1e12 {
-            let mut damped = a.clone();
-            for d in 0..damped.nrows() {
-                damped[(d, d)] += lambda * a[(d, d)].max(1e-12);
-            }
-            let Some(step) = damped.try_inverse().map(|inv| -(inv * &grad)) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let mut trial = th.clone();
+    for _round in 0..4 {
+        let mut lambda = 1e-3;
+        for _ in 0..60 {
+            let r0 = residuals(&th);
+            let cost0 = r0.norm_squared();
             for (jc, &c) in free.iter().enumerate() {
-                trial[c] += step[jc];
+                let h = 1e-6 * th[c].abs().max(1e-4);
+                let mut t2 = th.clone();
+                t2[c] += h;
+                jac.set_column(jc, &((residuals(&t2) - &r0) / h));
             }
-            if residuals(&trial).norm_squared() <= cost0 {
-                th = trial;
-                lambda = (lambda / 10.0).max(1e-9);
-                moved = Some(step.amax());
-                break;
+            let a = jac.transpose() * &jac;
+            let grad = jac.transpose() * &r0;
+            let mut moved = None;
+            while lambda < 1e12 {
+                let mut damped = a.clone();
+                for d in 0..damped.nrows() {
+                    damped[(d, d)] += lambda * a[(d, d)].max(1e-12);
+                }
+                let Some(step) = damped.try_inverse().map(|inv| -(inv * &grad)) else {
+                    lambda *= 10.0;
+                    continue;
+                };
+                let mut trial = th.clone();
+                for (jc, &c) in free.iter().enumerate() {
+                    trial[c] += step[jc];
+                }
+                if residuals(&trial).norm_squared() <= cost0 {
+                    th = trial;
+                    lambda = (lambda / 10.0).max(1e-9);
+                    moved = Some(step.amax());
+                    break;
+                }
+                lambda *= 10.0;
             }
-            lambda *= 10.0;
+            match moved {
+                Some(m) if m > 1e-10 => {}
+                _ => break,
+            }
         }
-        match moved {
-            Some(m) if m > 1e-10 => {}
-            _ => break,
+        // Robust: points beyond 6σ (σ from the median residual, at least 0.02 px) are left out
+        // and the fit repeated, until none is.
+        let r = residuals(&th);
+        let norms: Vec<f64> = (0..pts.len())
+            .map(|i| r[2 * i].hypot(r[2 * i + 1]))
+            .collect();
+        let mut kept: Vec<f64> = norms
+            .iter()
+            .zip(weights.borrow().iter())
+            .filter(|(_, w)| **w > 0.0)
+            .map(|(n, _)| *n)
+            .collect();
+        kept.sort_by(f64::total_cmp);
+        // The median of a 2-D residual's length is 1.1774σ for Gaussian errors.
+        let sigma = (kept.get(kept.len() / 2).copied().unwrap_or(0.0) / 1.1774).max(0.02);
+        let mut changed = false;
+        for (w, n) in weights.borrow_mut().iter_mut().zip(&norms) {
+            if *w > 0.0 && *n > 6.0 * sigma {
+                *w = 0.0;
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
         }
     }
     let r0 = residuals(&th);
@@ -796,7 +926,8 @@ fn fit_bundle(
         jac.set_column(jc, &((residuals(&t2) - &r0) / h));
     }
     let r = residuals(&th);
-    let dof = (r.len() as f64 - free.len() as f64).max(1.0);
+    let used = 2 * weights.borrow().iter().filter(|w| **w > 0.0).count();
+    let dof = (used as f64 - free.len() as f64).max(1.0);
     let cov = (jac.transpose() * &jac)
         .try_inverse()
         .ok_or("the fit is degenerate")?
@@ -814,7 +945,7 @@ fn fit_bundle(
         let (ss, n) = pts
             .iter()
             .enumerate()
-            .filter(|(_, p)| p.view == view)
+            .filter(|(i, p)| p.view == view && weights.borrow()[*i] > 0.0)
             .fold((0.0, 0usize), |(ss, n), (i, _)| {
                 (ss + r[2 * i].powi(2) + r[2 * i + 1].powi(2), n + 2)
             });
@@ -856,10 +987,15 @@ impl Calibrated {
         };
         let d = &self.direct;
         let mut out = format!(
-            "# impactcam calibrate: {}, {} frames. The world origin is the config's (a choice).\n\
+            "# impactcam calibrate: {}{}, {} frames. The world origin is the config's (a choice).\n\
              # direct: scale {} from free fall, {} from the diameter, {} used;\n\
              #   roll {} (image direction of gravity); parabola residuals {:.3} px RMS\n",
             self.source,
+            if self.recordings > 1 {
+                format!(" and {} more recording(s)", self.recordings - 1)
+            } else {
+                String::new()
+            },
             self.frames,
             p(&d.scale_from_free_fall, "px/mm", 4),
             p(&d.scale_from_diameter, "px/mm", 4),

@@ -53,8 +53,10 @@ pub(crate) enum Command {
     /// knowing only the sphere diameter, the frame rate and g: prints the [geometry] TOML with
     /// each parameter's uncertainty, and draws the regions and axes on the impact frame (PNG).
     Calibrate {
-        /// A session directory or a multi-page greyscale TIFF stack.
-        path: PathBuf,
+        /// Session directories or multi-page greyscale TIFF stacks of one rig: their flights are
+        /// fitted together (more flights, a better roll and tilt).
+        #[arg(required = true)]
+        paths: Vec<PathBuf>,
         /// The config giving the diameter, frame rate, g and the provisional geometry (regions,
         /// rough scales, the mirror's side); a session uses its own without it.
         #[arg(long)]
@@ -193,6 +195,17 @@ pub(crate) enum BenchWhat {
     /// calibration.json, centres.csv, truth.json), against their ground truth.
     Validation {
         /// The folder holding the recordings, e.g. the lab's shared validation set.
+        dir: PathBuf,
+    },
+    /// The analysis on non-ideal rigs drawn at random (roll, mirror tilt, perspective; varied
+    /// looks), each analysed with its exact map, with the maps calibrate finds, and with the
+    /// shorthand (which must warn).
+    Rigs {
+        /// How many rigs.
+        #[arg(long, default_value_t = 12)]
+        experiments: usize,
+        /// Where sessions are recorded while they are analysed (removed afterwards).
+        #[arg(long, default_value = ".")]
         dir: PathBuf,
     },
     /// Accuracy of impactcam's methods and the thesis's against simulated ground truth.

@@ -184,9 +184,9 @@ fn real_main(cli: Cli) -> Result<i32> {
             }
             Ok(0)
         }
-        Command::Calibrate { path, config, out } => {
+        Command::Calibrate { paths, config, out } => {
             let cfg = config.as_deref().map(Config::load).transpose()?;
-            let (cal, png) = impactcam::calibrate::calibrate_path(&path, cfg.as_ref())?;
+            let (cal, png) = impactcam::calibrate::calibrate_paths(&paths, cfg.as_ref())?;
             let text = cal.toml();
             match out {
                 Some(o) => {
@@ -291,6 +291,13 @@ fn real_main(cli: Cli) -> Result<i32> {
                     "{}",
                     impactcam::bench::relay::relay(pulses, pulse_ms).map_err(anyhow::Error::msg)?
                 );
+                Ok(0)
+            }
+            BenchWhat::Rigs { experiments, dir } => {
+                if experiments == 0 {
+                    bail!("--experiments: 0 runs nothing, expected at least 1");
+                }
+                print!("{}", impactcam::bench::rigs::rigs(experiments, &dir));
                 Ok(0)
             }
             BenchWhat::Validation { dir } => {

@@ -4,6 +4,7 @@
 pub mod accuracy;
 pub mod capture;
 pub mod relay;
+pub mod rigs;
 pub mod soak;
 pub mod validation;
 
