@@ -24,7 +24,8 @@ struct RigResult {
     look: String,
     exact: Result<[Option<(f64, f64)>; 3], String>,
     calibrated: Result<[Option<(f64, f64)>; 3], String>,
-    shorthand_warned: Option<bool>,
+    /// Whether the shorthand's report warned, and its Δe with σ.
+    shorthand: Option<(bool, Option<(f64, f64)>)>,
 }
 
 /// The rig's exact `[geometry]` from the truth the simulator wrote.
@@ -114,7 +115,9 @@ fn run_rig(seed: u64, dir: &Path) -> Result<RigResult, String> {
             .as_str()
             .unwrap_or("default")
             .to_string();
-        let shorthand_warned = analyse(&session, &cfg).ok().map(|r| geometry_warned(&r));
+        let shorthand = analyse(&session, &cfg)
+            .ok()
+            .map(|r| (geometry_warned(&r), errors(&r, &truth)[0]));
         let mut exact_cfg = cfg.clone();
         exact_cfg.geometry = exact_geometry(&cfg, &truth)?;
         let exact = analyse(&session, &exact_cfg).map(|r| errors(&r, &truth));
@@ -133,7 +136,7 @@ fn run_rig(seed: u64, dir: &Path) -> Result<RigResult, String> {
             look,
             exact,
             calibrated,
-            shorthand_warned,
+            shorthand,
         })
     })();
     let _ = std::fs::remove_dir_all(&session);
@@ -149,7 +152,7 @@ pub fn rigs(n: usize, dir: &Path) -> String {
     );
     let _ = writeln!(
         out,
-        "{:>3} {:>6} {:>6} {:>6} {:<10} | {:>16} {:>8} {:>8} | {:>16} {:>8} {:>8} | shorthand",
+        "{:>3} {:>6} {:>6} {:>6} {:<10} | {:>16} {:>8} {:>8} | {:>16} {:>8} {:>8} | shorthand Δe (z)",
         "#",
         "roll°",
         "tilt°",
@@ -201,10 +204,13 @@ pub fn rigs(n: usize, dir: &Path) -> String {
             r.look,
             side(&r.exact),
             side(&r.calibrated),
-            match r.shorthand_warned {
-                Some(true) => "warned",
-                Some(false) => "SILENT",
-                None => "no result",
+            match r.shorthand {
+                Some((warned, e)) => format!(
+                    "{} {}",
+                    if warned { "warned" } else { "SILENT" },
+                    e_cell(&e)
+                ),
+                None => "no result".into(),
             }
         );
     }
@@ -254,15 +260,28 @@ pub fn rigs(n: usize, dir: &Path) -> String {
             if all.is_empty() { f64::NAN } else { 100.0 * within1 as f64 / all.len() as f64 },
         );
     }
-    let warned = results
+    let short: Vec<(bool, Option<(f64, f64)>)> = results
         .iter()
-        .filter_map(|r| r.as_ref().ok()?.shorthand_warned)
-        .collect::<Vec<_>>();
+        .filter_map(|r| r.as_ref().ok()?.shorthand)
+        .collect();
+    let mut abs_e: Vec<f64> = short
+        .iter()
+        .filter_map(|s| s.1)
+        .map(|e| e.0.abs())
+        .collect();
+    abs_e.sort_by(f64::total_cmp);
+    let beyond5 = short
+        .iter()
+        .filter_map(|s| s.1)
+        .filter(|(e, s)| e.abs() > 5.0 * s)
+        .count();
     let _ = writeln!(
         out,
-        "shorthand: {} of {} analysed warned that the geometry does not describe the rig",
-        warned.iter().filter(|w| **w).count(),
-        warned.len()
+        "shorthand: {} of {} analysed warned that the geometry does not describe the rig; |Δe| median {:.4}, max {:.4}, {beyond5} beyond 5σ",
+        short.iter().filter(|s| s.0).count(),
+        short.len(),
+        abs_e.get(abs_e.len() / 2).copied().unwrap_or(f64::NAN),
+        abs_e.last().copied().unwrap_or(f64::NAN),
     );
     out
 }
