@@ -9,7 +9,20 @@ use std::path::Path;
 /// A config file's text.
 pub fn config(data: &[u8]) {
     if let Ok(text) = std::str::from_utf8(data) {
-        let _ = Config::from_toml_str(text, "fuzz.toml");
+        if let Ok(cfg) = Config::from_toml_str(text, "fuzz.toml") {
+            // A config that validates gives views whose maps can be used: project a point and
+            // read it back through every view, alone and both together.
+            let views = crate::analysis::geometry::views(&cfg);
+            let p = crate::analysis::geometry::V3::new(3.0, -7.0, 1.5);
+            let mut seen = Vec::new();
+            for v in &views {
+                let px = v.project(&p);
+                let _ = v.solve(px, Some(&p));
+                let _ = v.local_at(&p);
+                seen.push((v, px));
+            }
+            let _ = crate::analysis::geometry::triangulate(&seen, &p);
+        }
     }
 }
 

@@ -296,9 +296,14 @@ fn check_view_map(key: &str, v: &ViewGeometry, depth_axis: usize) -> Result<(), 
             ));
         }
     }
-    let Some((m, _)) = v.local_affine() else {
+    let Some((m, o)) = v.local_affine() else {
         return Err(format!("{key}: no map"));
     };
+    if !m.iter().flatten().chain(o.iter()).all(|x| x.is_finite() && x.abs() < 1e9) {
+        return Err(format!(
+            "{key}.{field}: its scale or offset at the world origin is not a finite number below 1e9, expected a map of a camera looking at the rig"
+        ));
+    }
     // The 2×2 minors of M: which world plane the view sees, and whether it sees one at all.
     let minor = |i: usize, j: usize| m[0][i] * m[1][j] - m[0][j] * m[1][i];
     let minors = [(minor(1, 2), 0), (minor(0, 2), 1), (minor(0, 1), 2)]; // (det, depth axis)
