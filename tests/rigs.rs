@@ -232,6 +232,45 @@ fn the_shorthand_on_a_turned_rig_warns_and_calibrate_finds_its_maps() {
     }
     assert_eq!(geometry_warnings(&calibrated), Vec::<String>::new());
 
+    // Two more recordings of the same rig, calibrated together with the first: the roll is
+    // narrower than from the first alone (σ as √N would have it, within reason).
+    let rig =
+        "[sim]\ncamera_roll_deg = 1.5\nmirror_tilt_deg = 2.0\nperspective_distance_mm = 300.0\n";
+    let before: Vec<_> = std::fs::read_dir(t.path().join("sessions"))
+        .unwrap()
+        .collect();
+    assert_eq!(before.len(), 1);
+    for seed in [24, 25] {
+        std::fs::write(t.path().join("more.toml"), format!("{rig}seed = {seed}\n")).unwrap();
+        common::run_json(t.path(), &["run", "--config", "more.toml", "--json"]);
+    }
+    let mut sessions: Vec<String> = std::fs::read_dir(t.path().join("sessions"))
+        .unwrap()
+        .map(|e| e.unwrap().path().to_string_lossy().into_owned())
+        .collect();
+    sessions.sort();
+    let roll_sigma = |paths: &[&str]| -> f64 {
+        let mut args = vec!["calibrate"];
+        args.extend_from_slice(paths);
+        let out = common::impactcam(t.path(), &args);
+        assert!(out.status.success(), "{}", common::stderr(&out));
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        // "#   roll -1.515 ± 0.007 deg (image direction of gravity)"
+        let line = text
+            .lines()
+            .find(|l| l.contains("(image direction of gravity)"))
+            .unwrap();
+        let after = line.split('±').nth(1).unwrap().trim();
+        after.split_whitespace().next().unwrap().parse().unwrap()
+    };
+    let one = roll_sigma(&[session.to_str().unwrap()]);
+    let all: Vec<&str> = sessions.iter().map(|s| s.as_str()).collect();
+    let three = roll_sigma(&all);
+    assert!(
+        three < 0.8 * one,
+        "roll σ from three recordings {three}°, from one {one}°"
+    );
+
     // The same seed on the square rig: quiet.
     let t = tempfile::tempdir().unwrap();
     let (report, _) = run(t.path(), "[sim]\nseed = 23\n");

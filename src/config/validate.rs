@@ -299,7 +299,12 @@ fn check_view_map(key: &str, v: &ViewGeometry, depth_axis: usize) -> Result<(), 
     let Some((m, o)) = v.local_affine() else {
         return Err(format!("{key}: no map"));
     };
-    if !m.iter().flatten().chain(o.iter()).all(|x| x.is_finite() && x.abs() < 1e9) {
+    if !m
+        .iter()
+        .flatten()
+        .chain(o.iter())
+        .all(|x| x.is_finite() && x.abs() < 1e9)
+    {
         return Err(format!(
             "{key}.{field}: its scale or offset at the world origin is not a finite number below 1e9, expected a map of a camera looking at the rig"
         ));
