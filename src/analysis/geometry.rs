@@ -96,8 +96,15 @@ impl View {
         let (a, b) = (r1.normalize(), r2.normalize());
         let (sum, diff) = ((a + b).normalize(), (a - b).normalize());
         let half = std::f64::consts::FRAC_1_SQRT_2;
+        let axis = |name: &Option<String>, fallback: V3| {
+            name.as_deref()
+                .and_then(crate::config::parse_axis)
+                .map(V3::from)
+                .unwrap_or(fallback)
+        };
         let (ua, va) = if aligned {
-            (a, b)
+            // The shorthand's axes exactly (not r/|r|, which may be off by an ulp).
+            (axis(&g.u_axis, a), axis(&g.v_axis, b))
         } else {
             ((sum + diff) * half, (sum - diff) * half)
         };

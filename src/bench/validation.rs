@@ -2,8 +2,9 @@
 //! hw-sim (each a folder with `frames.tif`, `calibration.json`, `centres.csv`, `truth.json`, as
 //! the lab's validation set has them), compared with their ground truth. It checks; it tunes
 //! nothing: the figures are printed with each estimate's error in units of its own σ, so an
-//! uncertainty that does not cover the error shows. Views that only a general (rotated) map
-//! describes are reported as not analysable with the shorthand geometry.
+//! uncertainty that does not cover the error shows. A rotated view is given its general map.
+//! Each recording is also analysed with the maps `calibrate` finds on it, started from the
+//! shorthand an experimenter would type.
 
 use crate::config::{Config, SphereOverride, ViewGeometry};
 use serde_json::Value;
@@ -189,6 +190,57 @@ fn compare(dir: &Path) -> Result<Figures, String> {
     Ok(f)
 }
 
+/// The shorthand an experimenter would type for a view (each image axis the world axis it is
+/// nearest, the scale of its rows), whether or not it describes the view: where `calibrate`
+/// starts from.
+fn shorthand_of(g: &ViewGeometry) -> Option<ViewGeometry> {
+    let (m, o) = g.local_affine()?;
+    let axis = |r: &[f64; 3]| {
+        let k = (0..3).max_by(|&a, &b| r[a].abs().total_cmp(&r[b].abs()))?;
+        Some(format!(
+            "{}{}",
+            if r[k] < 0.0 { '-' } else { '+' },
+            ['x', 'y', 'z'][k]
+        ))
+    };
+    let norm = |r: &[f64; 3]| r.iter().map(|x| x * x).sum::<f64>().sqrt();
+    Some(ViewGeometry::shorthand(
+        g.region,
+        (norm(&m[0]) * norm(&m[1])).sqrt(),
+        o,
+        &axis(&m[0])?,
+        &axis(&m[1])?,
+    ))
+}
+
+/// e, ψ1, ψ2 against the truth (error, error / σ) with the maps `calibrate` finds on the
+/// recording itself, started from the shorthand.
+fn with_calibrate(dir: &Path) -> Result<Vec<(f64, f64)>, String> {
+    let cal = read_json(&dir.join("calibration.json"))?;
+    let truth = read_json(&dir.join("truth.json"))?;
+    let mut cfg = config_from_calibration(&cal)?;
+    cfg.geometry.direct = cfg.geometry.direct.as_ref().and_then(shorthand_of);
+    cfg.geometry.mirror = cfg.geometry.mirror.as_ref().and_then(shorthand_of);
+    let tiff = dir.join("frames.tif");
+    let (found, _) = crate::calibrate::calibrate_path(&tiff, Some(&cfg))
+        .map_err(|e| format!("calibrate: {e}"))?;
+    cfg.geometry = found.geometry;
+    let report = crate::experiment::analyze_path(&tiff, Some(&cfg), &mut |_, _| {})
+        .map_err(|e| format!("no result: {e}"))?;
+    let imp = &truth["impact"];
+    Ok([
+        (&report.e, "e_effective"),
+        (&report.psi1, "psi1"),
+        (&report.psi2, "psi2"),
+    ]
+    .iter()
+    .map(|(est, key)| match (est, num(&imp[*key])) {
+        (Some(e), Some(t)) => (e.value - t, (e.value - t) / e.uncertainty.max(1e-300)),
+        _ => (f64::NAN, f64::NAN),
+    })
+    .collect())
+}
+
 /// The comparison over every recording (a folder holding `truth.json`) under `dir`.
 pub fn validation(dir: &Path) -> Result<String, String> {
     let mut sessions: Vec<_> = std::fs::read_dir(dir)
@@ -268,6 +320,42 @@ pub fn validation(dir: &Path) -> Result<String, String> {
                     f.centres_expected,
                     max_z
                 );
+            }
+        }
+    }
+    let _ = writeln!(
+        out,
+        "\nwith the maps `impactcam calibrate` finds on each recording, started from the shorthand (the diameter, frame rate, g, regions known):"
+    );
+    let _ = writeln!(
+        out,
+        "{:<6} {:>16} {:>16} {:>16}",
+        "", "Δe (z)", "Δψ1 (z)", "Δψ2 (z)"
+    );
+    for p in &sessions {
+        let name = p
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        match with_calibrate(p) {
+            Ok(v) => {
+                let cell = |(e, z): (f64, f64)| {
+                    if e.is_finite() {
+                        format!("{e:+.4} ({z:+.1})")
+                    } else {
+                        "null".into()
+                    }
+                };
+                let _ = writeln!(
+                    out,
+                    "{name:<6} {:>16} {:>16} {:>16}",
+                    cell(v[0]),
+                    cell(v[1]),
+                    cell(v[2])
+                );
+            }
+            Err(e) => {
+                let _ = writeln!(out, "{name:<6} {e}");
             }
         }
     }
