@@ -22,6 +22,8 @@ pub mod report;
 pub mod rotation;
 mod second_pass;
 pub mod source;
+mod survey;
+pub use survey::{blob_survey, measure};
 pub mod spin;
 pub mod thesis;
 pub mod tracking;
@@ -134,65 +136,6 @@ pub fn analyze_detailed(
         progress((n + i) / 2, n)
     })?;
     analyze_observations(input(), obs, unmeasured, views, cfg)
-}
-
-/// Every frame measured (backdrop removed, circles fitted, spheres labelled) without the fits
-/// that follow: what `calibrate` needs from a recording whose geometry is only roughly known,
-/// where the impact's contact distance cannot be relied on yet.
-pub fn measure(
-    src: &mut dyn FrameSource,
-    cfg: &Config,
-) -> Result<(Vec<View>, Vec<FrameObs>), AnalysisError> {
-    let views = geometry::views(cfg);
-    let backdrop = backdrop::Backdrop::estimate(src, &views)?;
-    let src = &mut backdrop::Normalised {
-        inner: src,
-        backdrop,
-    };
-    let (obs, _) = tracking::measure_all(src, &views, cfg, &DotMasks::new(), &mut |_, _| {})?;
-    Ok((views, obs))
-}
-
-/// The whole (unclipped) blobs of every view in up to `frames` frames spread across the
-/// recording, backdrop removed, as [frame][view] → (centroid px, equivalent diameter px): what
-/// `calibrate` reads the views' rough scales and the mirror's offset from, before any geometry
-/// is trusted.
-pub fn blob_survey(
-    src: &mut dyn FrameSource,
-    cfg: &Config,
-    frames: usize,
-) -> Result<Vec<Vec<Vec<([f64; 2], f64)>>>, AnalysisError> {
-    let views = geometry::views(cfg);
-    let backdrop = backdrop::Backdrop::estimate(src, &views)?;
-    let n = src.len();
-    let src = &mut backdrop::Normalised {
-        inner: src,
-        backdrop,
-    };
-    let mut img = image::GreyImage::new();
-    let take = n.min(frames.max(1));
-    let mut out = Vec::with_capacity(take);
-    for k in 0..take {
-        src.read(k * n / take, &mut img)?;
-        out.push(
-            views
-                .iter()
-                .map(|view| {
-                    let lv = detect::levels(&img, view);
-                    // Any blob of a few pixels or more: the size is what is sought.
-                    detect::find_blobs(&img, view, &lv, 2.0, cfg.analysis.threshold_fraction)
-                        .into_iter()
-                        .filter(|b| !b.clipped)
-                        .map(|b| {
-                            let d = 2.0 * (b.area_px as f64 / std::f64::consts::PI).sqrt();
-                            (b.centroid, d)
-                        })
-                        .collect()
-                })
-                .collect(),
-        );
-    }
-    Ok(out)
 }
 
 /// Analyses centres digitised elsewhere (see `tracks` for the CSV columns).

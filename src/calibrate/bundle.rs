@@ -1,0 +1,453 @@
+//! Both views fitted to the flights at once (a small bundle adjustment): every flight a
+//! ballistic trajectory with g known, seen through the direct view's and the mirror's maps;
+//! Levenberg–Marquardt with weak priors on what the flights cannot tell apart, outliers left out.
+
+use super::maps::{direct_matrix, facing_of, mirror_matrix};
+use super::provisional::z_sign;
+use super::{Fitted, MirrorFit};
+use crate::analysis::geometry::{View, ViewKind, V3};
+use crate::analysis::tracking::FrameObs;
+use nalgebra::{DMatrix, DVector};
+
+/// One image point of a sphere in free flight: flight index, time from the flight's mean,
+/// view (0 direct, 1 mirror) and the point.
+pub(super) struct FlightPoint {
+    flight: usize,
+    dt: f64,
+    view: usize,
+    q: [f64; 2],
+}
+
+/// What the joint fit found: the direct view's scale and roll, the mirror's scale, roll, tilt
+/// and u offset, with σ, and the residuals per view.
+pub(super) struct Bundle {
+    pub(super) direct_scale: Fitted,
+    pub(super) direct_roll: Fitted,
+    /// Inverse camera distance of [direct, mirror], 1/mm.
+    pub(super) kappa: [Fitted; 2],
+    pub(super) mirror: Option<MirrorFit>,
+    pub(super) residual_rms_px: [f64; 2],
+}
+
+/// (parameter, σ) of the bundle's priors: the mirror's turns about x, y, z (rad) and the two
+/// cameras' 1/distance (1/mm).
+pub(super) const PRIORS: [(usize, f64); 5] =
+    [(3, 0.0873), (4, 0.0873), (5, 0.0873), (7, 0.01), (8, 0.01)];
+
+/// Both views fitted together (a small bundle adjustment): every flight is a ballistic
+/// trajectory with g known (x, z straight lines, y a parabola), seen by the direct view through
+/// (s_d, φ_d) and by the mirror through its scale, its turn about x, y and z, and o_u. Held: the direct view's origin and
+/// the mirror's v offset (the world origin, a choice), the mirror's flips.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn fit_bundle(
+    obs: &[FrameObs],
+    phases: &[Vec<usize>],
+    g: f64,
+    di: usize,
+    mi: Option<usize>,
+    origin_direct: [f64; 2],
+    start: (f64, f64),
+    provisional_mirror: Option<&View>,
+) -> Result<Bundle, String> {
+    let mut pts = Vec::new();
+    for (k, frames) in phases.iter().enumerate() {
+        let s = k % 2;
+        let mean_t =
+            frames.iter().map(|&i| obs[i].time_s).sum::<f64>() / frames.len().max(1) as f64;
+        for &i in frames {
+            let f = &obs[i];
+            for (view, vi) in [(0, Some(di)), (1, mi)] {
+                let Some(vi) = vi else { continue };
+                if let Some(m) = &f.spheres[s][vi] {
+                    pts.push(FlightPoint {
+                        flight: k,
+                        dt: f.time_s - mean_t,
+                        view,
+                        q: m.centre_px,
+                    });
+                }
+            }
+        }
+    }
+    let flights: Vec<usize> = (0..phases.len())
+        .filter(|k| pts.iter().filter(|p| p.flight == *k && p.view == 0).count() >= 6)
+        .collect();
+    pts.retain(|p| flights.contains(&p.flight));
+    let mirror_points = pts.iter().filter(|p| p.view == 1).count();
+    let with_mirror = mi.is_some() && provisional_mirror.is_some();
+    if flights.len() < 2 || (with_mirror && mirror_points < 12) {
+        return Err(format!(
+            "{} flight(s) of 6 frames or more in the direct view and {mirror_points} mirror centres: calibrate needs 2 flights (a collision gives 4) and 12 mirror centres",
+            flights.len()
+        ));
+    }
+    let (f, ov) = provisional_mirror
+        .map(|v| (z_sign(v), v.origin_px[1]))
+        .unwrap_or((1.0, 0.0));
+    // Parameters: s_d, φ_d, s_m, the mirror's turn about x, y, z, o_u, the direct and the
+    // mirror camera's inverse distance κ (1/mm; 0 is orthographic), then
+    // (x0, vx, y0, vy, z0, vz) per flight.
+    let nv = 9;
+    let np = nv + 6 * flights.len();
+    let mut th = DVector::zeros(np);
+    th[0] = start.0;
+    th[1] = start.1;
+    if let Some(v) = provisional_mirror {
+        th[2] = v.px_per_mm;
+        th[6] = v.origin_px[0];
+    }
+    let slot = |k: usize| flights.iter().position(|&x| x == k).unwrap_or(0);
+    // Starting trajectories: the direct view inverted with the starting map; z from the
+    // provisional mirror, each a straight line per flight.
+    let m0 = direct_matrix(start.0, start.1);
+    let inv = nalgebra::Matrix2::new(m0[0][0], m0[0][1], m0[1][0], m0[1][1])
+        .try_inverse()
+        .ok_or("the direct view's starting map is singular")?;
+    for (j, &k) in flights.iter().enumerate() {
+        let line = |vals: &[(f64, f64)]| -> (f64, f64) {
+            let n = vals.len().max(1) as f64;
+            let (mt, mv) = (
+                vals.iter().map(|x| x.0).sum::<f64>() / n,
+                vals.iter().map(|x| x.1).sum::<f64>() / n,
+            );
+            let stt: f64 = vals.iter().map(|x| (x.0 - mt).powi(2)).sum();
+            let stv: f64 = vals.iter().map(|x| (x.0 - mt) * (x.1 - mv)).sum();
+            let b = if stt > 0.0 { stv / stt } else { 0.0 };
+            (mv - b * mt, b)
+        };
+        let xy: Vec<(f64, nalgebra::Vector2<f64>)> = pts
+            .iter()
+            .filter(|p| p.flight == k && p.view == 0)
+            .map(|p| {
+                let d =
+                    nalgebra::Vector2::new(p.q[0] - origin_direct[0], p.q[1] - origin_direct[1]);
+                (p.dt, inv * d)
+            })
+            .collect();
+        let xs: Vec<(f64, f64)> = xy.iter().map(|(t, p)| (*t, p[0])).collect();
+        let ys: Vec<(f64, f64)> = xy
+            .iter()
+            .map(|(t, p)| (*t, p[1] + 0.5 * g * t * t))
+            .collect();
+        let (x0, vx) = line(&xs);
+        let (y0, vy) = line(&ys);
+        let zs: Vec<(f64, f64)> = pts
+            .iter()
+            .filter(|p| p.flight == k && p.view == 1)
+            .map(|p| (p.dt, f * (p.q[1] - ov) / th[2].max(1e-9)))
+            .collect();
+        let (z0, vz) = line(&zs);
+        for (c, v) in [x0, vx, y0, vy, z0, vz].into_iter().enumerate() {
+            th[nv + 6 * j + c] = v;
+        }
+    }
+    // x runs the same way in the mirror as in the direct view unless the mirror's u falls with it.
+    let sx = provisional_mirror
+        .map(|v| if v.u_axis.x < 0.0 { -1.0 } else { 1.0 })
+        .unwrap_or(1.0);
+    // Points left out as outliers (a frame still in contact, a sphere still in its tube at
+    // a flight's end) weigh 0.
+    let weights = std::cell::RefCell::new(vec![1.0; pts.len()]);
+    let residuals = |th: &DVector<f64>| -> DVector<f64> {
+        let weights = weights.borrow();
+        let md = direct_matrix(th[0], th[1]);
+        let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], sx, f);
+        let (fd, fm) = (
+            facing_of(&md, ViewKind::Direct),
+            facing_of(&mm, ViewKind::Mirror),
+        );
+        let mut r = DVector::zeros(2 * pts.len() + PRIORS.len());
+        // Weak priors keep what the flights cannot tell apart sane (and its σ honest): each
+        // of the mirror's turns 0 ± 5°, each camera's 1/distance 0 ± 0.01 /mm; a row weighs as
+        // an image residual of 0.03 px does.
+        for (j, &(c, sigma)) in PRIORS.iter().enumerate() {
+            r[2 * pts.len() + j] = th[c] / sigma * 0.03;
+        }
+        for (i, p) in pts.iter().enumerate() {
+            let b = nv + 6 * slot(p.flight);
+            let t = p.dt;
+            let w = [
+                th[b] + th[b + 1] * t,
+                th[b + 2] + th[b + 3] * t - 0.5 * g * t * t,
+                th[b + 4] + th[b + 5] * t,
+            ];
+            let (m, o, facing, kappa) = if p.view == 0 {
+                (&md, origin_direct, fd, th[7])
+            } else {
+                (&mm, [th[6], ov], fm, th[8])
+            };
+            let k = 1.0 / (1.0 - kappa * facing.dot(&V3::from(w)));
+            for c in 0..2 {
+                r[2 * i + c] = weights[i]
+                    * (p.q[c] - (k * (m[c][0] * w[0] + m[c][1] * w[1] + m[c][2] * w[2]) + o[c]));
+            }
+        }
+        r
+    };
+    // Without a mirror its parameters are held (their columns left out).
+    let free: Vec<usize> = (0..np)
+        .filter(|&c| with_mirror || !(2..nv).contains(&c))
+        .filter(|&c| with_mirror || (c < nv || (c - nv) % 6 < 4))
+        .collect();
+    // Levenberg–Marquardt: Gauss–Newton steps, damped where they would not lower the cost.
+    let mut jac = DMatrix::zeros(2 * pts.len() + PRIORS.len(), free.len());
+    for _round in 0..4 {
+        let mut lambda = 1e-3;
+        for _ in 0..60 {
+            let r0 = residuals(&th);
+            let cost0 = r0.norm_squared();
+            for (jc, &c) in free.iter().enumerate() {
+                let h = 1e-6 * th[c].abs().max(1e-4);
+                let mut t2 = th.clone();
+                t2[c] += h;
+                jac.set_column(jc, &((residuals(&t2) - &r0) / h));
+            }
+            let a = jac.transpose() * &jac;
+            let grad = jac.transpose() * &r0;
+            let mut moved = None;
+            while lambda < 1e12 {
+                let mut damped = a.clone();
+                for d in 0..damped.nrows() {
+                    damped[(d, d)] += lambda * a[(d, d)].max(1e-12);
+                }
+                let Some(step) = damped.try_inverse().map(|inv| -(inv * &grad)) else {
+                    lambda *= 10.0;
+                    continue;
+                };
+                let mut trial = th.clone();
+                for (jc, &c) in free.iter().enumerate() {
+                    trial[c] += step[jc];
+                }
+                if residuals(&trial).norm_squared() <= cost0 {
+                    th = trial;
+                    lambda = (lambda / 10.0).max(1e-9);
+                    moved = Some(step.amax());
+                    break;
+                }
+                lambda *= 10.0;
+            }
+            match moved {
+                Some(m) if m > 1e-10 => {}
+                _ => break,
+            }
+        }
+        // Robust: points beyond 6σ (σ from the median residual, at least 0.02 px) are left out
+        // and the fit repeated, until none is.
+        let r = residuals(&th);
+        let norms: Vec<f64> = (0..pts.len())
+            .map(|i| r[2 * i].hypot(r[2 * i + 1]))
+            .collect();
+        let mut kept: Vec<f64> = norms
+            .iter()
+            .zip(weights.borrow().iter())
+            .filter(|(_, w)| **w > 0.0)
+            .map(|(n, _)| *n)
+            .collect();
+        kept.sort_by(f64::total_cmp);
+        // The median of a 2-D residual's length is 1.1774σ for Gaussian errors.
+        let sigma = (kept.get(kept.len() / 2).copied().unwrap_or(0.0) / 1.1774).max(0.02);
+        let mut changed = false;
+        for (w, n) in weights.borrow_mut().iter_mut().zip(&norms) {
+            if *w > 0.0 && *n > 6.0 * sigma {
+                *w = 0.0;
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    let r0 = residuals(&th);
+    for (jc, &c) in free.iter().enumerate() {
+        let h = 1e-6 * th[c].abs().max(1e-4);
+        let mut t2 = th.clone();
+        t2[c] += h;
+        jac.set_column(jc, &((residuals(&t2) - &r0) / h));
+    }
+    let r = residuals(&th);
+    let used = 2 * weights.borrow().iter().filter(|w| **w > 0.0).count();
+    let dof = (used as f64 - free.len() as f64).max(1.0);
+    let cov = (jac.transpose() * &jac)
+        .try_inverse()
+        .ok_or("the fit is degenerate")?
+        * (r.norm_squared() / dof);
+    let fitted = |c: usize, k: f64| {
+        let jc = free.iter().position(|&x| x == c);
+        Fitted {
+            value: th[c] * k,
+            sigma: jc
+                .map(|j| cov[(j, j)].max(0.0).sqrt() * k.abs())
+                .unwrap_or(0.0),
+        }
+    };
+    let rms = |view: usize| {
+        let (ss, n) = pts
+            .iter()
+            .enumerate()
+            .filter(|(i, p)| p.view == view && weights.borrow()[*i] > 0.0)
+            .fold((0.0, 0usize), |(ss, n), (i, _)| {
+                (ss + r[2 * i].powi(2) + r[2 * i + 1].powi(2), n + 2)
+            });
+        if n == 0 {
+            f64::NAN
+        } else {
+            (ss / n as f64).sqrt()
+        }
+    };
+    let deg = 180.0 / std::f64::consts::PI;
+    Ok(Bundle {
+        direct_scale: fitted(0, 1.0),
+        direct_roll: fitted(1, deg),
+        kappa: [fitted(7, 1.0), fitted(8, 1.0)],
+        mirror: with_mirror.then(|| MirrorFit {
+            scale: fitted(2, 1.0),
+            scale_from_diameter: Fitted {
+                value: f64::NAN,
+                sigma: f64::NAN,
+            },
+            tilt_deg: fitted(3, deg),
+            roll_deg: fitted(4, deg),
+            yaw_deg: fitted(5, deg),
+            origin_u_px: fitted(6, 1.0),
+            x_reversed: sx < 0.0,
+            residual_rms_px: rms(1),
+            points: mirror_points,
+            camera_distance_mm: None,
+        }),
+        residual_rms_px: [rms(0), rms(1)],
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::maps::{distance, view_geometry};
+    use super::*;
+    use crate::analysis::tracking::Measurement;
+    use crate::config::ViewGeometry;
+
+    const G: f64 = 9806.65;
+
+    /// Four ballistic flights (a and b, before and after) seen through the given views with
+    /// Gaussian noise on every centre, 25 frames each at 1 kHz: the bundle's input written from
+    /// the maps' `project`, not drawn by the simulator.
+    fn flights_through(
+        views: [&View; 2],
+        noise_px: f64,
+        seed: u64,
+    ) -> (Vec<FrameObs>, Vec<Vec<usize>>) {
+        let mut rng = hw_sim::Rng::new(seed);
+        let flights = [
+            (V3::new(-15.0, 5.0, 1.0), V3::new(800.0, -300.0, 20.0)),
+            (V3::new(15.0, 4.0, -1.0), V3::new(-700.0, -350.0, -10.0)),
+            (V3::new(-5.0, -6.0, 4.5), V3::new(-400.0, -500.0, 160.0)),
+            (V3::new(6.0, -5.0, -4.5), V3::new(600.0, -200.0, -180.0)),
+        ];
+        let (mut obs, mut phases) = (Vec::new(), vec![Vec::new(); 4]);
+        for (k, (p0, v)) in flights.iter().enumerate() {
+            for j in 0..25 {
+                let t = (j as f64 - 12.0) / 1000.0;
+                let p = p0 + v * t + V3::new(0.0, -0.5 * G * t * t, 0.0);
+                let mut spheres = [vec![None, None], vec![None, None]];
+                for (vi, view) in views.iter().enumerate() {
+                    let q = view.project(&p);
+                    let c = [
+                        q[0] + noise_px * rng.gaussian(),
+                        q[1] + noise_px * rng.gaussian(),
+                    ];
+                    spheres[k % 2][vi] = Some(Measurement {
+                        centre_px: c,
+                        blob_centroid_px: c,
+                        sigma_px: [noise_px; 2],
+                        diameter_px: 13.7,
+                        markers: Vec::new(),
+                    });
+                }
+                phases[k].push(obs.len());
+                obs.push(FrameObs {
+                    index: obs.len() as u64,
+                    frame_id: obs.len() as u64,
+                    time_s: k as f64 * 0.1 + t,
+                    spheres,
+                    position_mm: [None, None],
+                });
+            }
+        }
+        (obs, phases)
+    }
+
+    fn within(name: &str, f: Fitted, truth: f64) {
+        assert!(
+            f.sigma > 0.0 && (f.value - truth).abs() <= 4.0 * f.sigma,
+            "{name}: {} ± {} against {truth}",
+            f.value,
+            f.sigma
+        );
+    }
+
+    #[test]
+    fn the_bundle_finds_a_turned_rig_within_its_uncertainty() {
+        let (roll_d, turn_m) = (
+            1.2f64.to_radians(),
+            [3.5f64, -0.8, 0.6].map(f64::to_radians),
+        );
+        let kappa = Fitted {
+            value: 1.0 / 300.0,
+            sigma: 0.0,
+        };
+        for (perspective, seed) in [(false, 5), (true, 6)] {
+            let k = if perspective {
+                kappa
+            } else {
+                Fitted {
+                    value: 0.0,
+                    sigma: 0.0,
+                }
+            };
+            let (od, om) = ([119.5, 44.0], [121.0, 144.0]);
+            let md = direct_matrix(2.1576, roll_d);
+            let mm = mirror_matrix(2.1175, turn_m, 1.0, 1.0);
+            let direct = View::from_config(
+                ViewKind::Direct,
+                &view_geometry([0, 0, 240, 96], md, od, ViewKind::Direct, k),
+            );
+            let mirror = View::from_config(
+                ViewKind::Mirror,
+                &view_geometry([0, 96, 240, 96], mm, om, ViewKind::Mirror, k),
+            );
+            let (obs, phases) = flights_through([&direct, &mirror], 0.02, seed);
+            // Started from the square rig, 2 % off in scale.
+            let provisional = View::from_config(
+                ViewKind::Mirror,
+                &ViewGeometry::shorthand([0, 96, 240, 96], 2.08, om, "+x", "+z"),
+            );
+            let b = fit_bundle(
+                &obs,
+                &phases,
+                G,
+                0,
+                Some(1),
+                od,
+                (2.11, 0.0),
+                Some(&provisional),
+            )
+            .unwrap();
+            let m = b.mirror.unwrap();
+            let deg = |x: f64| x.to_degrees();
+            within("direct scale", b.direct_scale, 2.1576);
+            within("direct roll", b.direct_roll, deg(roll_d));
+            within("mirror scale", m.scale, 2.1175);
+            within("mirror tilt", m.tilt_deg, deg(turn_m[0]));
+            within("mirror roll", m.roll_deg, deg(turn_m[1]));
+            within("mirror yaw", m.yaw_deg, deg(turn_m[2]));
+            within("mirror origin u", m.origin_u_px, om[0]);
+            within("direct 1/distance", b.kappa[0], k.value);
+            within("mirror 1/distance", b.kappa[1], k.value);
+            assert_eq!(
+                distance(b.kappa[1]).is_some(),
+                perspective,
+                "perspective found"
+            );
+            assert!(m.residual_rms_px < 0.03, "{}", m.residual_rms_px);
+        }
+    }
+}

@@ -1,0 +1,407 @@
+//! `impactcam calibrate`: each view's map found from recordings of collisions, knowing only the
+//! spheres' diameter, the frame rate and g. The frames are measured with a provisional geometry
+//! (the config's regions and flips, its scales or the blobs'; `provisional`), the flights are
+//! found in the direct view's image (`flights`), and both views' maps are fitted to them at once
+//! (`bundle`, parametrised in `maps`):
+//!
+//! - the direct view's scale from free fall (g known; the imaged diameter is the check) and its
+//!   roll from the image direction of gravity;
+//! - the mirror's scale and its turns about x (tilt), y (roll) and z (yaw) from the x both views
+//!   share and from free fall; each camera's distance where perspective shows.
+//!
+//! What the data cannot give is kept from the config: the world origin (the direct view's
+//! `origin_px`, and the mirror's v offset, which sets z = 0), the regions, and the sign of z in
+//! the mirror (which side of the collision the mirror is on).
+
+use crate::analysis::geometry::ViewKind;
+
+mod bundle;
+mod flights;
+mod maps;
+mod output;
+mod provisional;
+
+use crate::analysis::{self, AnalysisError, FrameSource};
+use crate::config::Config;
+use bundle::fit_bundle;
+use flights::{diameter_scale, flights, parabola_acceleration};
+use maps::{direct_matrix, distance, mirror_matrix, view_geometry};
+use provisional::{align_mirror, line_fit, local_scale, set_scale, z_sign};
+
+/// A fitted parameter and its standard deviation.
+#[derive(Clone, Copy, Debug)]
+pub struct Fitted {
+    pub value: f64,
+    pub sigma: f64,
+}
+
+/// The direct view as found.
+#[derive(Clone, Debug)]
+pub struct DirectFit {
+    pub scale_from_free_fall: Fitted,
+    pub scale_from_diameter: Fitted,
+    /// From both views' flights fitted together, g known (the one used: the imaged edge's
+    /// position depends on the light, free fall does not; the diameter's is the check).
+    pub scale: Fitted,
+    /// Image direction of gravity away from straight down, deg (positive: towards +u).
+    pub roll_deg: Fitted,
+    pub residual_rms_px: f64,
+    /// The pinhole's distance from the world origin, when perspective was found (`distance`).
+    pub camera_distance_mm: Option<Fitted>,
+}
+
+/// The mirror view as found.
+#[derive(Clone, Debug)]
+pub struct MirrorFit {
+    pub scale: Fitted,
+    pub scale_from_diameter: Fitted,
+    /// The mirror view turned about world y, its line of sight (its image rotated), deg.
+    pub roll_deg: Fitted,
+    /// The mirror view turned about world x, deg (twice the mirror's own tilt from 45°): its
+    /// v takes in world y.
+    pub tilt_deg: Fitted,
+    /// The mirror view turned about world z, deg: its u takes in world y.
+    pub yaw_deg: Fitted,
+    /// Image u of the world origin, px.
+    pub origin_u_px: Fitted,
+    /// Whether the mirror shows world x reversed (u decreasing with x).
+    pub x_reversed: bool,
+    pub residual_rms_px: f64,
+    pub points: usize,
+    /// The virtual pinhole's distance from the world origin, when perspective was found.
+    pub camera_distance_mm: Option<Fitted>,
+}
+
+#[derive(Clone, Debug)]
+pub struct Calibrated {
+    pub source: String,
+    /// Recordings whose flights were fitted together.
+    pub recordings: usize,
+    pub frames: usize,
+    /// The frame nearest the impact (drawn in the PNG).
+    pub impact_frame: usize,
+    pub direct: DirectFit,
+    pub mirror: Option<MirrorFit>,
+    pub geometry: crate::config::Geometry,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrateError {
+    #[error("{source_name}: calibrate needs a [geometry.direct] view in the config (its region at least) to start from")]
+    NoDirectView { source_name: String },
+    #[error("{source_name}: the recording could not be analysed with the provisional geometry, so nothing can be fitted: {cause}")]
+    Provisional {
+        source_name: String,
+        cause: AnalysisError,
+    },
+    #[error("{source_name}: {message}")]
+    Data {
+        source_name: String,
+        message: String,
+    },
+}
+
+/// Calibrates from a session or a TIFF stack: with `cfg`, else a session's own config, else the
+/// embedded default (the thesis's layout). Returns the fit and a PNG of the frame nearest the
+/// impact with the regions and axes drawn.
+pub fn calibrate_path(
+    path: &std::path::Path,
+    cfg: Option<&Config>,
+) -> Result<(Calibrated, Vec<u8>), crate::experiment::ExperimentError> {
+    calibrate_paths(&[path.to_path_buf()], cfg)
+}
+
+/// As `calibrate_path`, pooling the flights of several recordings of one rig (the first sets
+/// the provisional scale; the config is the first session's own when none is given).
+pub fn calibrate_paths(
+    paths: &[std::path::PathBuf],
+    cfg: Option<&Config>,
+) -> Result<(Calibrated, Vec<u8>), crate::experiment::ExperimentError> {
+    let first = paths.first().ok_or_else(|| AnalysisError::Input {
+        source_name: "calibrate".into(),
+        message: "no recording given".into(),
+    })?;
+    let mut sources = Vec::new();
+    for p in paths {
+        sources.push(analysis::source::open(
+            p,
+            cfg.map(|c| c.camera.frame_rate_hz),
+        )?);
+    }
+    let cfg = match cfg {
+        Some(c) => c.clone(),
+        None => sources[0]
+            .recorded_config()
+            .cloned()
+            .unwrap_or_else(Config::default_config),
+    };
+    let cal = {
+        let mut refs: Vec<&mut dyn FrameSource> = sources
+            .iter_mut()
+            .map(|s| s.as_mut() as &mut dyn FrameSource)
+            .collect();
+        calibrate(&mut refs, &cfg).map_err(|e| AnalysisError::Input {
+            source_name: first.display().to_string(),
+            message: e.to_string(),
+        })?
+    };
+    let src = &mut sources[0];
+    let path = first;
+    let mut img = analysis::image::GreyImage::new();
+    src.read(cal.impact_frame, &mut img)?;
+    let png = cal.png(&img).map_err(|message| AnalysisError::Input {
+        source_name: path.display().to_string(),
+        message,
+    })?;
+    Ok((cal, png))
+}
+
+/// Fits the views' maps from one or more recordings of one rig (the first sets the
+/// provisional scale; the flights of all are fitted together).
+pub fn calibrate(
+    sources: &mut [&mut dyn FrameSource],
+    cfg: &Config,
+) -> Result<Calibrated, CalibrateError> {
+    let (src, others) = sources.split_first_mut().ok_or(CalibrateError::Data {
+        source_name: "calibrate".into(),
+        message: "no recording given".into(),
+    })?;
+    let src: &mut dyn FrameSource = &mut **src;
+    let name = src.source().name;
+    let data = |message: String| CalibrateError::Data {
+        source_name: name.clone(),
+        message,
+    };
+    let Some(direct_cfg) = cfg.geometry.direct.clone() else {
+        return Err(CalibrateError::NoDirectView { source_name: name });
+    };
+    // Where the spheres are, before any geometry is trusted: every view's whole blobs.
+    let survey =
+        analysis::blob_survey(src, cfg, 60).map_err(|cause| CalibrateError::Provisional {
+            source_name: name.clone(),
+            cause,
+        })?;
+    let kinds: Vec<ViewKind> = analysis::geometry::views(cfg)
+        .iter()
+        .map(|v| v.kind)
+        .collect();
+    let di = kinds
+        .iter()
+        .position(|k| *k == ViewKind::Direct)
+        .ok_or_else(|| data("no direct view".into()))?;
+    let mi = kinds.iter().position(|k| *k == ViewKind::Mirror);
+    // The mirror's x against the direct view's: where each view shows the same number of
+    // blobs (one or two), paired in order of u; u_mirror = a·u_direct + b gives the mirror's
+    // scale along x (and whether it reverses x) and the u offset that makes the two x agree, so
+    // that the spheres are labelled alike in both views.
+    let mirror_line = mi.and_then(|mi| {
+        let mut pairs = Vec::new();
+        for f in &survey {
+            let (mut d, mut m) = (f[di].clone(), f[mi].clone());
+            if d.len() != m.len() || d.is_empty() || d.len() > 2 {
+                continue;
+            }
+            d.sort_by(|p, q| p.0[0].total_cmp(&q.0[0]));
+            m.sort_by(|p, q| p.0[0].total_cmp(&q.0[0]));
+            pairs.extend(d.iter().zip(&m).map(|(p, q)| (p.0[0], q.0[0])));
+        }
+        line_fit(&pairs)
+    });
+    // The direct view's scale must be within 10 % for its discs to be taken for spheres. Tried
+    // in turn: the config's, then the blobs' median size (which the light biases: a highlight
+    // raises the threshold and shrinks the blob) and 15 % either side of it.
+    let mean_diameter_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
+    let config_scale = local_scale(&direct_cfg).unwrap_or(1.0);
+    let mut scales = vec![config_scale];
+    let mut sizes: Vec<f64> = survey
+        .iter()
+        .flat_map(|f| f[di].iter().map(|b| b.1))
+        .collect();
+    if sizes.len() >= 3 {
+        sizes.sort_by(f64::total_cmp);
+        let blob = sizes[sizes.len() / 2] / mean_diameter_mm;
+        for k in [1.0, 1.15, 1.0 / 1.15] {
+            let c = blob * k;
+            if scales.iter().all(|x| (c / x - 1.0).abs() > 0.05) {
+                scales.push(c);
+            }
+        }
+    }
+    let mut tried = Vec::new();
+    let mut found = None;
+    for s_d in scales {
+        let mut trial = cfg.clone();
+        if let Some(v) = trial.geometry.direct.as_mut() {
+            set_scale(v, s_d);
+        }
+        let direct_now = trial.geometry.direct.clone();
+        if let (Some(m), Some(d)) = (trial.geometry.mirror.as_mut(), direct_now.as_ref()) {
+            match mirror_line {
+                Some(line) => align_mirror(d, m, line),
+                None => {
+                    let ratio = local_scale(m).unwrap_or(config_scale) / config_scale;
+                    set_scale(m, s_d * ratio);
+                }
+            }
+        }
+        let attempt = analysis::measure(src, &trial)
+            .map_err(|e| e.to_string())
+            .and_then(|(views, obs)| {
+                let (split, phases) = flights(&obs, di)?;
+                Ok((views, obs, split, phases))
+            });
+        match attempt {
+            Ok(ok) => {
+                found = Some((trial, ok));
+                break;
+            }
+            Err(e) => tried.push(format!("at {s_d:.3} px/mm: {e}")),
+        }
+    }
+    let Some((cfg, (views, obs, split_frame, phases))) = found else {
+        return Err(data(format!(
+            "no provisional scale gives flights in the direct view ({})",
+            tried.join("; ")
+        )));
+    };
+    let cfg = &cfg;
+    // The other recordings, measured with the same provisional geometry; their frames follow
+    // the first's, their flights too (four per recording: sphere k % 2).
+    let (mut obs, mut phases) = (obs, phases.to_vec());
+    let mut used = 1;
+    for other in others.iter_mut() {
+        let other: &mut dyn FrameSource = &mut **other;
+        let oname = other.source().name;
+        let (_, o) =
+            analysis::measure(other, cfg).map_err(|cause| CalibrateError::Provisional {
+                source_name: oname.clone(),
+                cause,
+            })?;
+        let (_, ph) = flights(&o, di).map_err(|message| CalibrateError::Data {
+            source_name: oname,
+            message,
+        })?;
+        let offset = obs.len();
+        phases.extend(
+            ph.into_iter()
+                .map(|f| f.into_iter().map(|i| i + offset).collect()),
+        );
+        obs.extend(o);
+        used += 1;
+    }
+    let (views, obs) = (&views, &obs);
+    let g = cfg.analysis.gravity_mm_s2;
+    let diam = [cfg.spheres.sphere(0).0, cfg.spheres.sphere(1).0];
+
+    // Direct view: free fall per flight, pooled.
+    let mut acc = Vec::new();
+    for (k, frames) in phases.iter().enumerate() {
+        let pts: Vec<(f64, [f64; 2])> = frames
+            .iter()
+            .filter_map(|&i| Some((obs[i].time_s, obs[i].spheres[k % 2][di].as_ref()?.centre_px)))
+            .collect();
+        if let Some(a) = parabola_acceleration(&pts) {
+            acc.push(a);
+        }
+    }
+    if acc.is_empty() {
+        return Err(data(
+            "no flight of 6 frames or more in the direct view: free fall cannot be measured".into(),
+        ));
+    }
+    let (mut w, mut au, mut av) = (0.0, 0.0, 0.0);
+    for (a, s) in &acc {
+        let wk = 1.0 / (s * s);
+        w += wk;
+        au += wk * a[0];
+        av += wk * a[1];
+    }
+    let (au, av, sa) = (au / w, av / w, w.recip().sqrt());
+    let a_norm = au.hypot(av);
+    let scale_from_free_fall = Fitted {
+        value: a_norm / g,
+        sigma: sa / g,
+    };
+    let roll_deg = Fitted {
+        value: au.atan2(av).to_degrees(),
+        sigma: (sa / a_norm).to_degrees(),
+    };
+    let scale_from_diameter = diameter_scale(obs, di, diam)
+        .ok_or_else(|| data("no sphere diameter measured in the direct view".into()))?;
+    let origin_direct = direct_cfg
+        .local_affine()
+        .map(|(_, o)| o)
+        .ok_or_else(|| data("the direct view's provisional map is incomplete".into()))?;
+    let mi = views.iter().position(|v| v.kind == ViewKind::Mirror);
+    let bundle = fit_bundle(
+        obs,
+        &phases,
+        g,
+        di,
+        mi,
+        origin_direct,
+        (scale_from_free_fall.value, roll_deg.value.to_radians()),
+        mi.map(|i| &views[i]),
+    )
+    .map_err(&data)?;
+    let m_direct = direct_matrix(
+        bundle.direct_scale.value,
+        bundle.direct_roll.value.to_radians(),
+    );
+    let mut geometry = crate::config::Geometry {
+        direct: Some(view_geometry(
+            direct_cfg.region,
+            m_direct,
+            origin_direct,
+            ViewKind::Direct,
+            bundle.kappa[0],
+        )),
+        mirror: None,
+    };
+    let mut mirror = None;
+    if let (Some(mi), Some(mut fit)) = (mi, bundle.mirror) {
+        let region = cfg
+            .geometry
+            .mirror
+            .as_ref()
+            .map(|m| m.region)
+            .unwrap_or(views[mi].region);
+        let f = z_sign(&views[mi]);
+        let sx = if fit.x_reversed { -1.0 } else { 1.0 };
+        let m = mirror_matrix(
+            fit.scale.value,
+            [fit.tilt_deg.value, fit.roll_deg.value, fit.yaw_deg.value].map(f64::to_radians),
+            sx,
+            f,
+        );
+        let origin = [fit.origin_u_px.value, views[mi].origin_px[1]];
+        geometry.mirror = Some(view_geometry(
+            region,
+            m,
+            origin,
+            ViewKind::Mirror,
+            bundle.kappa[1],
+        ));
+        fit.camera_distance_mm = distance(bundle.kappa[1]);
+        if let Some(d) = diameter_scale(obs, mi, diam) {
+            fit.scale_from_diameter = d;
+        }
+        mirror = Some(fit);
+    }
+    Ok(Calibrated {
+        source: name,
+        recordings: used,
+        frames: obs.len(),
+        impact_frame: split_frame,
+        direct: DirectFit {
+            scale_from_free_fall,
+            scale_from_diameter,
+            scale: bundle.direct_scale,
+            roll_deg: bundle.direct_roll,
+            residual_rms_px: bundle.residual_rms_px[0],
+            camera_distance_mm: distance(bundle.kappa[0]),
+        },
+        mirror,
+        geometry,
+    })
+}

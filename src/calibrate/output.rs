@@ -1,0 +1,128 @@
+//! What calibrate prints: the `[geometry]` TOML with every parameter's value, σ and the
+//! residuals in comments, and the PNG of the regions and axes on the impact frame.
+
+use super::{Calibrated, Fitted};
+use crate::analysis::{
+    self,
+    geometry::{View, ViewKind, V3},
+};
+
+impl Calibrated {
+    /// The `[geometry]` TOML, each parameter's value and σ and the residuals in comments above.
+    pub fn toml(&self) -> String {
+        let p = |f: &Fitted, unit: &str, d: usize| {
+            format!("{:.d$} ± {:.d$} {unit}", f.value, f.sigma, d = d)
+        };
+        let d = &self.direct;
+        let mut out = format!(
+            "# impactcam calibrate: {}{}, {} frames. The world origin is the config's (a choice).\n\
+             # direct: scale {} from free fall, {} from the diameter, {} used;\n\
+             #   roll {} (image direction of gravity); parabola residuals {:.3} px RMS\n",
+            self.source,
+            if self.recordings > 1 {
+                format!(" and {} more recording(s)", self.recordings - 1)
+            } else {
+                String::new()
+            },
+            self.frames,
+            p(&d.scale_from_free_fall, "px/mm", 4),
+            p(&d.scale_from_diameter, "px/mm", 4),
+            p(&d.scale, "px/mm", 4),
+            p(&d.roll_deg, "deg", 3),
+            d.residual_rms_px
+        );
+        let persp = |d: &Option<Fitted>| match d {
+            Some(d) => format!("a pinhole {}", p(d, "mm away", 0)),
+            None => "no perspective found (orthographic)".into(),
+        };
+        out += &format!("#   direct camera: {}\n", persp(&d.camera_distance_mm));
+        if let Some(m) = &self.mirror {
+            out += &format!("#   mirror camera: {}\n", persp(&m.camera_distance_mm));
+            out += &format!(
+                "# mirror: scale {} (diameter: {}); turned about x (tilt, twice the mirror's from 45°)\n\
+                 #   {}, about y (roll) {}, about z (yaw) {}; x {}; origin u {};\n\
+                 #   residuals {:.3} px RMS over {} centres\n",
+                p(&m.scale, "px/mm", 4),
+                p(&m.scale_from_diameter, "px/mm", 4),
+                p(&m.tilt_deg, "deg", 3),
+                p(&m.roll_deg, "deg", 3),
+                p(&m.yaw_deg, "deg", 3),
+                if m.x_reversed { "reversed" } else { "not reversed" },
+                p(&m.origin_u_px, "px", 2),
+                m.residual_rms_px,
+                m.points
+            );
+        }
+        for (name, v) in [
+            ("direct", &self.geometry.direct),
+            ("mirror", &self.geometry.mirror),
+        ] {
+            let Some(v) = v else { continue };
+            if let Some(p) = v.projection {
+                let row =
+                    |r: [f64; 4]| format!("[{:.6}, {:.6}, {:.9}, {:.4}]", r[0], r[1], r[2], r[3]);
+                let row3 =
+                    |r: [f64; 4]| format!("[{:.9}, {:.9}, {:.9}, {:.1}]", r[0], r[1], r[2], r[3]);
+                out +=
+                    &format!(
+                    "\n[geometry.{name}]\nregion = [{}, {}, {}, {}]\nprojection = [{}, {}, {}]\n",
+                    v.region[0], v.region[1], v.region[2], v.region[3],
+                    row(p[0]), row(p[1]), row3(p[2])
+                );
+                continue;
+            }
+            let (Some(m), Some(o)) = (v.matrix_px_per_mm, v.origin_px) else {
+                continue;
+            };
+            let row = |r: [f64; 3]| format!("[{:.6}, {:.6}, {:.6}]", r[0], r[1], r[2]);
+            out += &format!(
+                "\n[geometry.{name}]\nregion = [{}, {}, {}, {}]\nmatrix_px_per_mm = [{}, {}]\norigin_px = [{:.4}, {:.4}]\n",
+                v.region[0],
+                v.region[1],
+                v.region[2],
+                v.region[3],
+                row(m[0]),
+                row(m[1]),
+                o[0],
+                o[1]
+            );
+        }
+        out
+    }
+
+    /// A PNG of frame `img` with the regions outlined and each view's world axes drawn from its
+    /// origin (x red, the other axis green, 10 mm long).
+    pub fn png(&self, img: &analysis::image::GreyImage) -> Result<Vec<u8>, String> {
+        use crate::figures::canvas::{Canvas, Raster};
+        let mut r = Raster::from_grey(img.width, img.height, &img.data);
+        for (kind, v) in [
+            (ViewKind::Direct, &self.geometry.direct),
+            (ViewKind::Mirror, &self.geometry.mirror),
+        ] {
+            let Some(g) = v else { continue };
+            let view = View::from_config(kind, g);
+            let [x, y, w, h] = g.region.map(f64::from);
+            let (x0, y0, x1, y1) = (x - 0.5, y - 0.5, x + w - 0.5, y + h - 0.5);
+            for (a, b) in [
+                ((x0, y0), (x1, y0)),
+                ((x1, y0), (x1, y1)),
+                ((x1, y1), (x0, y1)),
+                ((x0, y1), (x0, y0)),
+            ] {
+                r.line(a, b, [255, 200, 0], 1.0);
+            }
+            let o = view.project(&V3::zeros());
+            // y for the direct view, z for the mirror.
+            let mut second = V3::zeros();
+            second[3 - kind.depth_axis()] = 10.0;
+            for (end, colour) in [
+                (V3::new(10.0, 0.0, 0.0), [230, 40, 40]),
+                (second, [40, 200, 40]),
+            ] {
+                let q = view.project(&end);
+                r.line((o[0], o[1]), (q[0], q[1]), colour, 1.0);
+            }
+        }
+        r.png().map_err(|e| format!("PNG: {e}"))
+    }
+}
