@@ -8,8 +8,7 @@ mod common;
 use serde_json::Value;
 use std::path::Path;
 
-/// Runs one experiment with `config` and returns (report, truth). The configs run the
-/// simulator free (its clock follows the frames), so that a loaded machine changes nothing.
+/// Runs one experiment with `config` and returns (report, truth).
 fn run(dir: &Path, config: &str) -> (Value, Value) {
     std::fs::write(dir.join("rig.toml"), config).unwrap();
     let report = common::run_json(dir, &["run", "--config", "rig.toml", "--json"]);
@@ -130,7 +129,7 @@ fn a_turned_rig_with_its_exact_map_meets_the_goals() {
             .map(|d| format!("perspective_distance_mm = {d:?}\n"))
             .unwrap_or_default();
         let config = format!(
-            "[sim]\npace = \"free_run\"\nseed = {seed}\nlook_family = \"{look}\"\n{persp}{}",
+            "[sim]\nseed = {seed}\nlook_family = \"{look}\"\n{persp}{}",
             exact_geometry(roll, tilt, distance)
         );
         let (report, truth) = run(t.path(), &config);
@@ -164,7 +163,7 @@ fn the_shorthand_on_a_turned_rig_warns_and_calibrate_finds_its_maps() {
     let t = tempfile::tempdir().unwrap();
     let (report, truth) = run(
         t.path(),
-        "[sim]\npace = \"free_run\"\nseed = 23\ncamera_roll_deg = 1.5\nmirror_tilt_deg = 2.0\nperspective_distance_mm = 300.0\n",
+        "[sim]\nseed = 23\ncamera_roll_deg = 1.5\nmirror_tilt_deg = 2.0\nperspective_distance_mm = 300.0\n",
     );
     for name in ["direct", "mirror"] {
         let (m, o) = turned_map(name, 1.5, 2.0);
@@ -236,7 +235,7 @@ fn the_shorthand_on_a_turned_rig_warns_and_calibrate_finds_its_maps() {
     // Two more recordings of the same rig, calibrated together with the first: the roll is
     // narrower than from the first alone (σ as √N would have it, within reason).
     let rig =
-        "[sim]\npace = \"free_run\"\ncamera_roll_deg = 1.5\nmirror_tilt_deg = 2.0\nperspective_distance_mm = 300.0\n";
+        "[sim]\ncamera_roll_deg = 1.5\nmirror_tilt_deg = 2.0\nperspective_distance_mm = 300.0\n";
     let before: Vec<_> = std::fs::read_dir(t.path().join("sessions"))
         .unwrap()
         .collect();
@@ -274,6 +273,6 @@ fn the_shorthand_on_a_turned_rig_warns_and_calibrate_finds_its_maps() {
 
     // The same seed on the square rig: quiet.
     let t = tempfile::tempdir().unwrap();
-    let (report, _) = run(t.path(), "[sim]\npace = \"free_run\"\nseed = 23\n");
+    let (report, _) = run(t.path(), "[sim]\nseed = 23\n");
     assert_eq!(geometry_warnings(&report), Vec::<String>::new());
 }

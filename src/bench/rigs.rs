@@ -99,8 +99,6 @@ fn run_rig(seed: u64, dir: &Path) -> Result<RigResult, String> {
     cfg.sim.camera_roll_deg = roll;
     cfg.sim.mirror_tilt_deg = tilt;
     cfg.sim.perspective_distance_mm = distance;
-    // The simulator's clock follows the frames: a loaded machine records the same experiment.
-    cfg.sim.pace = hw_sim::Pace::FreeRun;
     let rec = Rig::open(&cfg)
         .map_err(|e| e.to_string())
         .and_then(|mut rig| {
