@@ -53,6 +53,20 @@ impl Calibrated {
                 m.points
             );
         }
+        // The analysis's σ does not include the geometry's: say how far the turns are known.
+        let worst = self
+            .mirror
+            .iter()
+            .flat_map(|m| [m.tilt_deg.sigma, m.roll_deg.sigma, m.yaw_deg.sigma])
+            .chain([d.roll_deg.sigma])
+            .fold(0.0, f64::max);
+        if worst > 0.1 {
+            out += &format!(
+                "# note: the views' turns are known to ±{worst:.2}°, which the analysis's σ does not include;\n\
+                 #   on oblique impacts (ψ1 above 1) 0.2–0.6° moved e by 0.02–0.04 on the validation\n\
+                 #   recordings: calibrate on more recordings of the rig to narrow it\n"
+            );
+        }
         for (name, v) in [
             ("direct", &self.geometry.direct),
             ("mirror", &self.geometry.mirror),
