@@ -31,6 +31,38 @@ pub(super) fn x_pairs(obs: &[FrameObs], views: &[View]) -> Option<Vec<(f64, f64)
     )
 }
 
+/// A least-squares line y = slope·x + intercept, and the extent of x it was fitted over.
+pub(crate) struct Line {
+    pub slope: f64,
+    pub intercept: f64,
+    pub x_span: f64,
+}
+
+/// The least-squares line through (x, y) pairs; None without pairs or without spread in x.
+pub(crate) fn fit_line(pairs: &[(f64, f64)]) -> Option<Line> {
+    if pairs.is_empty() {
+        return None;
+    }
+    let n = pairs.len() as f64;
+    let (mx, my) = (
+        pairs.iter().map(|p| p.0).sum::<f64>() / n,
+        pairs.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxx: f64 = pairs.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = pairs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let lo = pairs.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
+    let hi = pairs.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
+    if sxx <= 0.0 {
+        return None;
+    }
+    let slope = sxy / sxx;
+    Some(Line {
+        slope,
+        intercept: my - slope * mx,
+        x_span: hi - lo,
+    })
+}
+
 pub(super) fn residual_stats(pairs: &[(f64, f64)]) -> (f64, f64) {
     let n = pairs.len().max(1) as f64;
     let mean = pairs.iter().map(|(d, m)| m - d).sum::<f64>() / n;
@@ -51,22 +83,11 @@ pub(super) fn calibrate_mirror(obs: &[FrameObs], views: &mut [View]) -> Option<C
     let mi = views.iter().position(|v| v.kind == ViewKind::Mirror)?;
     let config_scale = views[mi].px_per_mm;
     let config_origin_u = views[mi].origin_px[0];
-    let n = pairs.len() as f64;
-    let (mx, my) = (
-        pairs.iter().map(|p| p.0).sum::<f64>() / n,
-        pairs.iter().map(|p| p.1).sum::<f64>() / n,
-    );
-    let sxx: f64 = pairs.iter().map(|p| (p.0 - mx).powi(2)).sum();
-    let sxy: f64 = pairs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    let lo = pairs.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
-    let hi = pairs.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
-    let mut refined = pairs.len() >= 10 && hi - lo >= 3.0 && sxx > 0.0;
-    let (mut mean_after, mut rms_after) = (mean_before, rms_before);
-    if refined {
-        let a = sxy / sxx;
-        let b = my - a * mx;
-        refined = views[mi].rescale(a, b);
+    let mut refined = false;
+    if let Some(l) = fit_line(&pairs).filter(|l| pairs.len() >= 10 && l.x_span >= 3.0) {
+        refined = views[mi].rescale(l.slope, l.intercept);
     }
+    let (mut mean_after, mut rms_after) = (mean_before, rms_before);
     if refined {
         let after = x_pairs(obs, views)?;
         (mean_after, rms_after) = residual_stats(&after);
@@ -88,9 +109,26 @@ pub(super) fn calibrate_mirror(obs: &[FrameObs], views: &mut [View]) -> Option<C
     })
 }
 
+/// The geometry's checks on the flights: the shared x's residuals against y and z and free fall
+/// per view, recorded in `c`, and the warnings they give.
+pub(super) fn check_geometry(
+    c: &mut Calibration,
+    obs: &[FrameObs],
+    views: &[View],
+    phases: &[Vec<usize>; 4],
+    g: f64,
+) -> Vec<String> {
+    if let Some([sy, sz]) = residual_slopes(obs, views) {
+        c.residual_per_mm_of_y = Some(sy);
+        c.residual_per_mm_of_z = Some(sz);
+    }
+    c.free_fall = free_fall(obs, views, phases, g);
+    geometry_warnings(c, spans_y_z(obs, views), g)
+}
+
 /// Mirror x minus direct x against the world y and z of the same centre, with the refined
 /// geometry: [y slope, z slope], mm per mm, each with its σ (least squares with an intercept).
-pub(super) fn residual_slopes(obs: &[FrameObs], views: &[View]) -> Option<[Scalar; 2]> {
+fn residual_slopes(obs: &[FrameObs], views: &[View]) -> Option<[Scalar; 2]> {
     let di = views.iter().position(|v| v.kind == ViewKind::Direct)?;
     let mi = views.iter().position(|v| v.kind == ViewKind::Mirror)?;
     // (residual, y, z)
@@ -134,12 +172,7 @@ pub(super) fn residual_slopes(obs: &[FrameObs], views: &[View]) -> Option<[Scala
 
 /// Free fall as each view measures it: a parabola fitted to each of the view's two coordinates
 /// over each flight phase, the accelerations pooled over the phases (weights 1/σ²).
-pub(super) fn free_fall(
-    obs: &[FrameObs],
-    views: &[View],
-    phases: &[Vec<usize>; 4],
-    g: f64,
-) -> Vec<FreeFall> {
+fn free_fall(obs: &[FrameObs], views: &[View], phases: &[Vec<usize>; 4], g: f64) -> Vec<FreeFall> {
     let mut out = Vec::new();
     for (vi, view) in views.iter().enumerate() {
         for (slot, &axis) in view.axes.iter().enumerate() {
@@ -201,7 +234,7 @@ fn parabola_acceleration(pts: &[(f64, f64)]) -> Option<(f64, f64)> {
 }
 
 /// The extent of world y and z over every centre the views measured, mm.
-pub(super) fn spans_y_z(obs: &[FrameObs], views: &[View]) -> [f64; 2] {
+fn spans_y_z(obs: &[FrameObs], views: &[View]) -> [f64; 2] {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for f in obs {
@@ -222,7 +255,7 @@ pub(super) fn spans_y_z(obs: &[FrameObs], views: &[View]) -> [f64; 2] {
 /// What the checks say about the configured geometry, in the lab's words. Quiet below what a
 /// right geometry shows (6σ, and an effect that matters: 0.02 mm over the span of y or z seen,
 /// 1 % of g).
-pub(super) fn geometry_warnings(c: &Calibration, span_y_z_mm: [f64; 2], g: f64) -> Vec<String> {
+fn geometry_warnings(c: &Calibration, span_y_z_mm: [f64; 2], g: f64) -> Vec<String> {
     let mut out = Vec::new();
     for (slope, span, name) in [
         (&c.residual_per_mm_of_y, span_y_z_mm[0], "y"),

@@ -9,7 +9,7 @@
 //! no impact, too few frames).
 
 mod backdrop;
-mod calibration;
+pub(crate) mod calibration;
 pub mod circle;
 pub mod detect;
 pub mod geometry;
@@ -172,7 +172,7 @@ pub fn analyze_observations(
     };
     let (mut views, mut obs) = (views, obs);
     world::place(&mut obs, &views);
-    let calibration = calibrate_mirror(&obs, &mut views);
+    let mut calibration = calibrate_mirror(&obs, &mut views);
     if calibration.as_ref().is_some_and(|c| c.refined) {
         world::place(&mut obs, &views);
     }
@@ -242,23 +242,9 @@ pub fn analyze_observations(
     // Spins, one constant vector per sphere and flight phase.
     let method = cfg.analysis.rotation;
     let ph = flight_phases(&obs, &views, split, 0.5 * period, g);
-    let mut calibration = calibration;
     if let Some(c) = calibration.as_mut() {
-        if let Some([sy, sz]) = calibration::residual_slopes(&obs, &views) {
-            c.residual_per_mm_of_y = Some(sy);
-            c.residual_per_mm_of_z = Some(sz);
-        }
+        warnings.extend(calibration::check_geometry(c, &obs, &views, &ph, g));
     }
-    let free_fall = calibration::free_fall(&obs, &views, &ph, g);
-    let spans = calibration::spans_y_z(&obs, &views);
-    let calibration = match calibration {
-        Some(mut c) => {
-            c.free_fall = free_fall;
-            warnings.extend(calibration::geometry_warnings(&c, spans, g));
-            Some(c)
-        }
-        None => None,
-    };
     let obs_spin = relift_on_trajectories(&obs, &views, &fits, &ph, split, g, radii);
     let measured: Vec<spin::SpinMeasurement> = (0..4)
         .map(|k| spin::measure(&obs_spin, &ph[k], k % 2, method))

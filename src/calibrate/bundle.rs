@@ -5,6 +5,7 @@
 use super::maps::{direct_matrix, facing_of, mirror_matrix};
 use super::provisional::z_sign;
 use super::{Fitted, MirrorFit};
+use crate::analysis::calibration::fit_line;
 use crate::analysis::geometry::{View, ViewKind, V3};
 use crate::analysis::tracking::FrameObs;
 use nalgebra::{DMatrix, DVector};
@@ -104,16 +105,14 @@ pub(super) fn fit_bundle(
         .try_inverse()
         .ok_or("the direct view's starting map is singular")?;
     for (j, &k) in flights.iter().enumerate() {
+        // (intercept, slope); a constant (their mean) where the times do not spread.
         let line = |vals: &[(f64, f64)]| -> (f64, f64) {
-            let n = vals.len().max(1) as f64;
-            let (mt, mv) = (
-                vals.iter().map(|x| x.0).sum::<f64>() / n,
-                vals.iter().map(|x| x.1).sum::<f64>() / n,
-            );
-            let stt: f64 = vals.iter().map(|x| (x.0 - mt).powi(2)).sum();
-            let stv: f64 = vals.iter().map(|x| (x.0 - mt) * (x.1 - mv)).sum();
-            let b = if stt > 0.0 { stv / stt } else { 0.0 };
-            (mv - b * mt, b)
+            fit_line(vals)
+                .map(|l| (l.intercept, l.slope))
+                .unwrap_or_else(|| {
+                    let mean = vals.iter().map(|x| x.1).sum::<f64>() / vals.len().max(1) as f64;
+                    (mean, 0.0)
+                })
         };
         let xy: Vec<(f64, nalgebra::Vector2<f64>)> = pts
             .iter()

@@ -2,6 +2,7 @@
 //! from the data where needed, and the mirror's x made to agree with the direct view's, so that
 //! the spheres are labelled alike in both views before anything is fitted.
 
+use crate::analysis::calibration::fit_line;
 use crate::analysis::geometry::View;
 use crate::config::ViewGeometry;
 
@@ -11,24 +12,13 @@ pub(super) fn line_fit(pairs: &[(f64, f64)]) -> Option<(f64, f64)> {
     if pairs.len() < 6 {
         return None;
     }
-    let n = pairs.len() as f64;
-    let (mx, my) = (
-        pairs.iter().map(|p| p.0).sum::<f64>() / n,
-        pairs.iter().map(|p| p.1).sum::<f64>() / n,
-    );
-    let sxx: f64 = pairs.iter().map(|p| (p.0 - mx).powi(2)).sum();
-    let sxy: f64 = pairs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    let lo = pairs.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
-    let hi = pairs.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
-    if hi - lo < 20.0 || sxx <= 0.0 {
-        return None;
-    }
-    let (a, b) = (sxy / sxx, my - sxy / sxx * mx);
+    let l = fit_line(pairs).filter(|l| l.x_span >= 20.0)?;
+    let (a, b) = (l.slope, l.intercept);
     let rms = (pairs
         .iter()
         .map(|p| (p.1 - a * p.0 - b).powi(2))
         .sum::<f64>()
-        / n)
+        / pairs.len() as f64)
         .sqrt();
     (rms <= 1.5).then_some((a, b))
 }
