@@ -8,23 +8,10 @@ mod common;
 use serde_json::Value;
 use std::path::Path;
 
-/// Runs one experiment with `config` and returns (report, truth). The simulator paces the
-/// relay in real time, so each recording differs a little; one that gives no result at all
-/// (too few frames of a flight) is recorded once more, in a fresh directory, and the second
-/// must give one.
+/// Runs one experiment with `config` and returns (report, truth).
 fn run(dir: &Path, config: &str) -> (Value, Value) {
     std::fs::write(dir.join("rig.toml"), config).unwrap();
-    let args = ["run", "--config", "rig.toml", "--json"];
-    let out = common::impactcam(dir, &args);
-    if !out.status.success() {
-        eprintln!("recorded again: {}", common::stderr(&out));
-        std::fs::remove_dir_all(dir.join("sessions")).unwrap();
-    }
-    let report = if out.status.success() {
-        serde_json::from_slice(&out.stdout).unwrap()
-    } else {
-        common::run_json(dir, &args)
-    };
+    let report = common::run_json(dir, &["run", "--config", "rig.toml", "--json"]);
     let truth = common::read_json(&common::first_session(dir).join("truth.json"));
     (report, truth)
 }

@@ -59,6 +59,12 @@ impl SimCamera {
         self.next_index = idx;
     }
 
+    /// Stops streaming: the lab clock no longer waits for this camera (see `clock`).
+    pub fn stop(&mut self) {
+        self.start_index = None;
+        self.lab.clock().release_hold();
+    }
+
     /// Blocks until the next frame is due (real-time pace), renders it and returns it.
     pub fn next_frame(&mut self, buf: Vec<u8>) -> Result<SimFrame, SimError> {
         if self.start_index.is_none() {
@@ -83,6 +89,8 @@ impl SimCamera {
                     if due > now {
                         std::thread::sleep(due - now);
                     }
+                    // The world waits for the next frame if this one is drawn late.
+                    clock.hold_at((idx + 1) as f64 / fps);
                 }
                 Pace::FreeRun => clock.set_free_run_now(t),
             }
@@ -109,6 +117,14 @@ impl SimCamera {
                 timestamp_ns: (t * 1e9).round() as u64,
                 data,
             });
+        }
+    }
+}
+
+impl Drop for SimCamera {
+    fn drop(&mut self) {
+        if self.start_index.is_some() {
+            self.lab.clock().release_hold();
         }
     }
 }

@@ -51,6 +51,7 @@ impl Camera for SimBackend {
         })
     }
     fn stop(&mut self) -> Result<(), CameraError> {
+        self.camera.stop();
         Ok(())
     }
 }
