@@ -208,6 +208,20 @@ pub(crate) enum BenchWhat {
         #[arg(long, default_value = ".")]
         dir: PathBuf,
     },
+    /// The analysis's CPU time per frame on one thread, whole and by stage, against reading
+    /// the frames and a threshold + moments centroid on the same frames.
+    Analysis {
+        /// How many hw-sim sessions (varied looks) to time.
+        #[arg(long, default_value_t = 6)]
+        experiments: usize,
+        /// Also time an independent renderer's recordings (a folder like the one `bench
+        /// validation` reads).
+        #[arg(long)]
+        validation: Option<PathBuf>,
+        /// Where sessions are recorded while they are timed (removed afterwards).
+        #[arg(long, default_value = ".")]
+        dir: PathBuf,
+    },
     /// Accuracy of impactcam's methods and the thesis's against simulated ground truth.
     Accuracy {
         /// A small sweep (4 experiments) instead of the full one.

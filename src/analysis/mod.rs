@@ -22,6 +22,7 @@ pub mod report;
 pub mod rotation;
 mod second_pass;
 pub mod source;
+pub mod stages;
 mod survey;
 pub use survey::{blob_survey, measure};
 pub mod spin;
@@ -108,7 +109,10 @@ pub fn analyze_detailed(
         }
     }
     // Each frame is measured against what stands still in its view, bright side up.
-    let backdrop = backdrop::Backdrop::estimate(src, &views)?;
+    stages::set_pass(0);
+    let backdrop = stages::timed(stages::Stage::Backdrop, || {
+        backdrop::Backdrop::estimate(src, &views)
+    })?;
     let src = &mut backdrop::Normalised {
         inner: src,
         backdrop,
@@ -126,16 +130,21 @@ pub fn analyze_detailed(
         warnings: warnings.clone(),
         frames_dropped,
     };
-    let first = analyze_observations(input(), obs, unmeasured, views.clone(), cfg)?;
+    let first = stages::timed(stages::Stage::Fits, || {
+        analyze_observations(input(), obs, unmeasured, views.clone(), cfg)
+    })?;
     let dots = rim_dots(&first.1, cfg);
     if dots.is_empty() {
         progress(src.len(), src.len());
         return Ok(first);
     }
+    stages::set_pass(1);
     let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, &dots, &mut |i, n| {
         progress((n + i) / 2, n)
     })?;
-    analyze_observations(input(), obs, unmeasured, views, cfg)
+    stages::timed(stages::Stage::Fits, || {
+        analyze_observations(input(), obs, unmeasured, views, cfg)
+    })
 }
 
 /// Analyses centres digitised elsewhere (see `tracks` for the CSV columns).

@@ -2,6 +2,7 @@
 //! the same run — never asserted on wall-clock time.
 
 pub mod accuracy;
+pub mod analysis;
 pub mod capture;
 pub mod relay;
 pub mod rigs;

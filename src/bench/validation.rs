@@ -30,7 +30,7 @@ fn num(v: &Value) -> Option<f64> {
 }
 
 /// The config an experimenter would write from `calibration.json`, or why there is none.
-fn config_from_calibration(cal: &Value) -> Result<Config, String> {
+pub(crate) fn config_from_calibration(cal: &Value) -> Result<Config, String> {
     let mut cfg = Config::default_config();
     let c = &cal["calibration"];
     cfg.camera.width = c["image_width"]

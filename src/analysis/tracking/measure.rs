@@ -7,6 +7,7 @@ use crate::analysis::detect::Blob;
 use crate::analysis::geometry::View;
 use crate::analysis::image::GreyImage;
 use crate::analysis::markers;
+use crate::analysis::stages::{self, Stage};
 use crate::config::Config;
 
 /// One sphere's measurement from its blob: the circle fit, its gates, and the dots inside.
@@ -26,7 +27,10 @@ pub(super) fn measure_blob(
     if b.merged {
         return Err(format!("{name}: silhouettes of a and b merged"));
     }
-    let Some(f) = refine(img, view, b.centroid, radius_px, lv.background, other, dots) else {
+    let fitted = stages::timed(Stage::Circles, || {
+        refine(img, view, b.centroid, radius_px, lv.background, other, dots)
+    });
+    let Some(f) = fitted else {
         return Err(format!("{name}: too few edge points for a circle fit"));
     };
     // A disc cut by the view's border: its radius is known, and held, where the visible arc
@@ -34,9 +38,9 @@ pub(super) fn measure_blob(
     // there was up to 0.9 px off (as far as 2 px defocused), so without this fit there is no
     // measurement.
     let f = if b.clipped {
-        let Some(k) =
+        let Some(k) = stages::timed(Stage::Circles, || {
             profile_fit_known_radius(img, view, &f, lv.background, other, dots, radius_px)
-        else {
+        }) else {
             return Err(format!(
                 "{name}: sphere clipped by the view border and its visible arc not fitted at the known radius"
             ));
@@ -84,14 +88,16 @@ pub(super) fn measure_blob(
         markers: if b.clipped {
             Vec::new()
         } else {
-            markers::find(
-                img,
-                view,
-                &f,
-                radius_mm,
-                cfg.analysis.marker_diameter_mm,
-                lv.noise_sigma,
-            )
+            stages::timed(Stage::Markers, || {
+                markers::find(
+                    img,
+                    view,
+                    &f,
+                    radius_mm,
+                    cfg.analysis.marker_diameter_mm,
+                    lv.noise_sigma,
+                )
+            })
         },
     };
     Ok((m, f))

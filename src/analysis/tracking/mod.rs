@@ -10,6 +10,7 @@ use super::geometry::View;
 use super::image::GreyImage;
 use super::markers::{self, MarkerObs};
 use super::report::Unmeasured;
+use super::stages::{self, Stage};
 use super::{AnalysisError, FrameSource};
 use crate::config::Config;
 use std::collections::HashMap;
@@ -66,13 +67,25 @@ pub fn measure_all(
     dots: &DotMasks,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Vec<FrameObs>, Vec<Unmeasured>), AnalysisError> {
+    stages::timed(Stage::Measure, || {
+        measure_frames(source, views, cfg, dots, progress)
+    })
+}
+
+fn measure_frames(
+    source: &mut dyn FrameSource,
+    views: &[View],
+    cfg: &Config,
+    dots: &DotMasks,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<(Vec<FrameObs>, Vec<Unmeasured>), AnalysisError> {
     let mut img = GreyImage::new();
     let mut out = Vec::with_capacity(source.len());
     let mut tracker = Tracker::new(views.len(), source.source().frame_rate_hz);
     let n = source.len();
     for i in 0..n {
         let meta = source.meta(i);
-        source.read(i, &mut img)?;
+        stages::timed(Stage::Read, || source.read(i, &mut img))?;
         let cx = FrameCtx {
             i,
             t: meta.timestamp_ns as f64 * 1e-9,
@@ -234,14 +247,17 @@ impl Tracker {
         let dots = cx.dots.get(&(cx.i, vi)).map(Vec::as_slice).unwrap_or(&[]);
         let radius = [0, 1].map(|s| cx.cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
         let r_mean = 0.5 * (radius[0] + radius[1]);
-        let lv = levels(cx.img, view);
-        let blobs = find_blobs(
-            cx.img,
-            view,
-            &lv,
-            r_mean,
-            cx.cfg.analysis.threshold_fraction,
-        );
+        let (lv, blobs) = stages::timed(Stage::Detect, || {
+            let lv = levels(cx.img, view);
+            let blobs = find_blobs(
+                cx.img,
+                view,
+                &lv,
+                r_mean,
+                cx.cfg.analysis.threshold_fraction,
+            );
+            (lv, blobs)
+        });
         // Views after the first take identity from it through the x both views see.
         // Where the primary view does not measure a sphere in this frame, its x is
         // extrapolated from the primary's recent frames (x has no gravity: a straight line).
@@ -379,7 +395,10 @@ impl Tracker {
         }
         if let [Some(fa), Some(fb)] = &fitted {
             if rings_meet(fa, fb) {
-                if let Some(pair) = profile_fit_pair(cx.img, view, [fa, fb], lv.background, dots) {
+                let pair = stages::timed(Stage::Circles, || {
+                    profile_fit_pair(cx.img, view, [fa, fb], lv.background, dots)
+                });
+                if let Some(pair) = pair {
                     for (s, f) in pair.iter().enumerate() {
                         if let Some(m) = spheres[s][vi].as_mut() {
                             m.centre_px = f.centre;
@@ -435,14 +454,16 @@ impl Tracker {
                 } else {
                     r_seen.iter().sum::<f64>() / r_seen.len() as f64
                 };
-                let fits = split_pair(
-                    cx.img,
-                    view,
-                    blobs[0].centroid,
-                    r_fit,
-                    lv.background,
-                    lv.peak,
-                );
+                let fits = stages::timed(Stage::Circles, || {
+                    split_pair(
+                        cx.img,
+                        view,
+                        blobs[0].centroid,
+                        r_fit,
+                        lv.background,
+                        lv.peak,
+                    )
+                });
                 let fresh_x = [0, 1].map(|s| {
                     spheres[s][0]
                         .as_ref()
@@ -476,15 +497,15 @@ impl Tracker {
                     // along a crescent too thin to hold it (the split circles are off by
                     // hundredths, not tenths).
                     let behind = match (labels, front) {
-                        ([Some(fa), Some(fb)], Some(fr)) => {
+                        ([Some(fa), Some(fb)], Some(fr)) => stages::timed(Stage::Circles, || {
                             profile_fit_behind(cx.img, view, [fa, fb], fr, lv.background, dots)
-                                .filter(|pair| {
-                                    pair.iter().zip([fa, fb]).all(|(n, o)| {
-                                        (n.centre[0] - o.centre[0]).hypot(n.centre[1] - o.centre[1])
-                                            < MAX_REFIT_MOVE_PX
-                                    })
-                                })
-                        }
+                        })
+                        .filter(|pair| {
+                            pair.iter().zip([fa, fb]).all(|(n, o)| {
+                                (n.centre[0] - o.centre[0]).hypot(n.centre[1] - o.centre[1])
+                                    < MAX_REFIT_MOVE_PX
+                            })
+                        }),
                         _ => None,
                     };
                     let labels: [Option<&CircleFit>; 2] = match &behind {
@@ -495,14 +516,16 @@ impl Tracker {
                         match f {
                             Some(f) => {
                                 let dots = if front == Some(s) {
-                                    markers::find(
-                                        cx.img,
-                                        view,
-                                        f,
-                                        cx.cfg.spheres.sphere(s).0 / 2.0,
-                                        cx.cfg.analysis.marker_diameter_mm,
-                                        lv.noise_sigma,
-                                    )
+                                    stages::timed(Stage::Markers, || {
+                                        markers::find(
+                                            cx.img,
+                                            view,
+                                            f,
+                                            cx.cfg.spheres.sphere(s).0 / 2.0,
+                                            cx.cfg.analysis.marker_diameter_mm,
+                                            lv.noise_sigma,
+                                        )
+                                    })
                                 } else {
                                     Vec::new()
                                 };
