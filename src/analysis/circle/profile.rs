@@ -544,8 +544,19 @@ where
             let mut jtr = Vp::<P>::zeros();
             for q in keep {
                 let (m, j) = eval(p, q, area);
-                jtj += j * j.transpose();
+                // JᵀJ is symmetric: its upper triangle only, mirrored below.
+                for c in 0..P {
+                    let jc = j[c];
+                    for r in 0..=c {
+                        jtj[(r, c)] += j[r] * jc;
+                    }
+                }
                 jtr += j * (q.grey - m);
+            }
+            for c in 0..P {
+                for r in c + 1..P {
+                    jtj[(r, c)] = jtj[(c, r)];
+                }
             }
             if let Some(a) = &tie_row {
                 jtj += a * a.transpose() * TIE_WEIGHT;
@@ -590,7 +601,7 @@ where
     // which costs nine times as much per pixel and moves the centres by thousandths of a pixel.
     let mut keep = pixels.to_vec();
     for round in 0..3 {
-        descend(&mut p, &keep, false, 1e-7);
+        descend(&mut p, &keep, false, 1e-3);
         if round == 2 {
             break;
         }
