@@ -48,6 +48,10 @@ pub(crate) enum Command {
         /// Print the report as JSON on stdout instead of the summary.
         #[arg(long)]
         json: bool,
+        /// Threads to analyse with (default: every core). The report is the same, bit for
+        /// bit, whatever the number.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+        jobs: Option<u16>,
     },
     /// Find each view's map (scale, roll, the mirror's tilt) from a recording of a collision,
     /// knowing only the sphere diameter, the frame rate and g: prints the [geometry] TOML with
@@ -88,6 +92,10 @@ pub(crate) enum Command {
         /// this, that is refused: `replay` compares against the recorded report).
         #[arg(long)]
         overwrite: bool,
+        /// Threads to analyse with (default: every core). The report is the same, bit for
+        /// bit, whatever the number.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+        jobs: Option<u16>,
     },
     /// The lab daemon: HTTP API and web page to run and watch experiments.
     Serve {

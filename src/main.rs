@@ -161,7 +161,12 @@ fn real_main(cli: Cli) -> Result<i32> {
                 Err(e) => interrupted_or(e),
             }
         }
-        Command::Replay { session, json } => {
+        Command::Replay {
+            session,
+            json,
+            jobs,
+        } => {
+            impactcam::analysis::set_threads(jobs.map_or(0, usize::from));
             let report = experiment::analyze_session(&session, None, &mut |_, _| {})?;
             let text = experiment::report_json(&report);
             let recorded = std::fs::read_to_string(session.join("report.json")).ok();
@@ -206,7 +211,11 @@ fn real_main(cli: Cli) -> Result<i32> {
             json,
             out,
             overwrite,
-        } => analyze_command(path, tracks, config, json, out, overwrite),
+            jobs,
+        } => {
+            impactcam::analysis::set_threads(jobs.map_or(0, usize::from));
+            analyze_command(path, tracks, config, json, out, overwrite)
+        }
         Command::Serve { config, listen } => {
             let cfg = load_config(config.as_deref())?;
             let listen = listen.unwrap_or_else(|| cfg.daemon.listen.clone());

@@ -83,6 +83,25 @@ fn run_on_the_embedded_default_measures_e_and_replays_exactly() {
         replay.stdout,
         std::fs::read(session.join("report.json")).unwrap()
     );
+    // The same bits whatever the number of threads: one (no work done ahead at all), two and
+    // five (frames fitted ahead on other threads, in chunks that end elsewhere).
+    for jobs in ["1", "2", "5"] {
+        let again = impactcam(
+            tmp.path(),
+            &[
+                "replay",
+                session.to_str().unwrap(),
+                "--json",
+                "--jobs",
+                jobs,
+            ],
+        );
+        assert!(again.status.success(), "--jobs {jobs}: {}", stderr(&again));
+        assert!(
+            again.stdout == replay.stdout,
+            "--jobs {jobs}: the report differs from the recorded one"
+        );
+    }
 }
 
 #[test]

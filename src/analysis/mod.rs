@@ -62,6 +62,23 @@ pub enum AnalysisError {
     },
 }
 
+/// Threads the analysis of one input may use (0: as many as the machine has).
+static THREADS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// Sets the threads the analysis of one input may use (`--jobs`; 0: as many as the machine
+/// has). The report does not depend on it (`tracking::ahead`).
+pub fn set_threads(n: usize) {
+    THREADS.store(n, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// The threads the analysis of one input uses.
+pub fn threads() -> usize {
+    match THREADS.load(std::sync::atomic::Ordering::Relaxed) {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n,
+    }
+}
+
 /// Analyses any frame source with the given config.
 pub fn analyze(
     src: &mut dyn FrameSource,

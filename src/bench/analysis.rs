@@ -110,7 +110,7 @@ pub fn threshold_centroids(
                 }
             }
         }
-        regions.sort_by(|a, b| b.0.cmp(&a.0));
+        regions.sort_by_key(|r| std::cmp::Reverse(r.0));
         out.extend(
             regions
                 .iter()
@@ -307,6 +307,8 @@ pub fn analysis(
     let mut out = String::from(
         "impactcam bench analysis — CPU time per frame on one thread; ratios against baselines on the same frames in this run\n",
     );
+    // One thread: the figures are CPU time per frame of one core's work.
+    crate::analysis::set_threads(1);
     let mut sim = Group::default();
     for i in 0..experiments as u64 {
         let (session, cfg) = record(2000 + i, dir)?;

@@ -10,7 +10,54 @@ use crate::analysis::markers;
 use crate::analysis::stages::{self, Stage};
 use crate::config::Config;
 
-/// One sphere's measurement from its blob: the circle fit, its gates, and the dots inside.
+/// A blob's circle fit: `refine`, and for a blob cut by the view's border the fit at the known
+/// radius over it. What costs the time in measuring a sphere, and a pure function of its
+/// arguments — no label, no memory of other frames — so that it can be computed ahead on other
+/// threads (`ahead`) and give the same bits as here.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum BlobFit {
+    Fitted(CircleFit),
+    TooFewEdgePoints,
+    ClippedNotFitted,
+}
+
+pub(super) fn fit_blob(
+    img: &GreyImage,
+    view: &View,
+    b: &Blob,
+    radius_px: f64,
+    other: Option<([f64; 2], f64)>,
+    background: f64,
+    dots: &[DotMask],
+) -> BlobFit {
+    let fitted = stages::timed(Stage::Circles, || {
+        refine(img, view, b.centroid, radius_px, background, other, dots)
+    });
+    let Some(f) = fitted else {
+        return BlobFit::TooFewEdgePoints;
+    };
+    // A disc cut by the view's border: its radius is known, and held, where the visible arc
+    // cannot fix both it and the centre across the cut; an edge-point fit with a free radius
+    // there was up to 0.9 px off (as far as 2 px defocused), so without this fit there is no
+    // measurement.
+    if !b.clipped {
+        return BlobFit::Fitted(f);
+    }
+    match stages::timed(Stage::Circles, || {
+        profile_fit_known_radius(img, view, &f, background, other, dots, radius_px)
+    }) {
+        Some(k) => BlobFit::Fitted(CircleFit {
+            points_used: f.points_used,
+            points_total: f.points_total,
+            arc_sectors: f.arc_sectors,
+            ..k
+        }),
+        None => BlobFit::ClippedNotFitted,
+    }
+}
+
+/// One sphere's measurement from its blob: the circle fit (`fit_blob`, or `ahead`'s when it
+/// was computed ahead with the same arguments), its gates, and the dots inside.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn measure_blob(
     img: &GreyImage,
@@ -22,37 +69,24 @@ pub(super) fn measure_blob(
     lv: &ViewLevels,
     cfg: &Config,
     dots: &[DotMask],
+    ahead: Option<BlobFit>,
 ) -> Result<(Measurement, CircleFit), String> {
     let name = ["a", "b"][s];
     if b.merged {
         return Err(format!("{name}: silhouettes of a and b merged"));
     }
-    let fitted = stages::timed(Stage::Circles, || {
-        refine(img, view, b.centroid, radius_px, lv.background, other, dots)
-    });
-    let Some(f) = fitted else {
-        return Err(format!("{name}: too few edge points for a circle fit"));
-    };
-    // A disc cut by the view's border: its radius is known, and held, where the visible arc
-    // cannot fix both it and the centre across the cut; an edge-point fit with a free radius
-    // there was up to 0.9 px off (as far as 2 px defocused), so without this fit there is no
-    // measurement.
-    let f = if b.clipped {
-        let Some(k) = stages::timed(Stage::Circles, || {
-            profile_fit_known_radius(img, view, &f, lv.background, other, dots, radius_px)
-        }) else {
+    let fit =
+        ahead.unwrap_or_else(|| fit_blob(img, view, b, radius_px, other, lv.background, dots));
+    let f = match fit {
+        BlobFit::Fitted(f) => f,
+        BlobFit::TooFewEdgePoints => {
+            return Err(format!("{name}: too few edge points for a circle fit"))
+        }
+        BlobFit::ClippedNotFitted => {
             return Err(format!(
                 "{name}: sphere clipped by the view border and its visible arc not fitted at the known radius"
-            ));
-        };
-        CircleFit {
-            points_used: f.points_used,
-            points_total: f.points_total,
-            arc_sectors: f.arc_sectors,
-            ..k
+            ))
         }
-    } else {
-        f
     };
     // A sphere partly beyond the view's border is fitted on its visible arc, and kept if that
     // arc is at least half the circle: fast spheres cross a view in a dozen frames, and the
@@ -128,7 +162,7 @@ pub(super) fn measure_touching(
             ..part.clone()
         };
         let other = Some((predicted[1 - s], radius_px[1 - s]));
-        measure_blob(img, view, &b, s, radius_px[s], other, lv, cfg, dots).ok()
+        measure_blob(img, view, &b, s, radius_px[s], other, lv, cfg, dots, None).ok()
     };
     let (a, b) = (fit(0)?, fit(1)?);
     for (s, f) in [&a.1, &b.1].iter().enumerate() {

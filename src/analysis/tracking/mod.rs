@@ -13,8 +13,10 @@ use super::report::Unmeasured;
 use super::stages::{self, Stage};
 use super::{AnalysisError, FrameSource};
 use crate::config::Config;
+use crate::session::FrameMeta;
 use std::collections::HashMap;
 
+mod ahead;
 mod identity;
 mod measure;
 
@@ -79,30 +81,87 @@ fn measure_frames(
     dots: &DotMasks,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Vec<FrameObs>, Vec<Unmeasured>), AnalysisError> {
-    let mut img = GreyImage::new();
     let mut out = Vec::with_capacity(source.len());
     let mut tracker = Tracker::new(views.len(), source.source().frame_rate_hz);
     let n = source.len();
-    for i in 0..n {
-        let meta = source.meta(i);
-        stages::timed(Stage::Read, || source.read(i, &mut img))?;
-        let cx = FrameCtx {
-            i,
-            t: meta.timestamp_ns as f64 * 1e-9,
-            img: &img,
-            views,
-            cfg,
-            dots,
+    // One thread: frame by frame. More: frames are read a chunk at a time (memory stays
+    // bounded whatever the length); while tracking walks through one chunk in order, the other
+    // threads do the next chunk's detection and likely fits (`ahead`), and the tracking thread
+    // joins them when it is done.
+    let threads = super::threads();
+    let chunk = if threads > 1 { 8 * threads } else { 1 };
+    if n == 0 {
+        return Ok((out, tracker.unmeasured));
+    }
+    let read = |source: &mut dyn FrameSource,
+                imgs: &mut Vec<GreyImage>,
+                metas: &mut Vec<FrameMeta>,
+                first: usize|
+     -> Result<(), AnalysisError> {
+        imgs.resize_with(chunk.min(n - first), GreyImage::new);
+        metas.clear();
+        for (k, img) in imgs.iter_mut().enumerate() {
+            stages::timed(Stage::Read, || source.read(first + k, img))?;
+            metas.push(source.meta(first + k));
+        }
+        Ok(())
+    };
+    let mut track =
+        |imgs: &[GreyImage], metas: &[FrameMeta], ahead: &[ahead::Ahead], first: usize| {
+            let none = ahead::Ahead::default();
+            for (k, (img, meta)) in imgs.iter().zip(metas).enumerate() {
+                let i = first + k;
+                let cx = FrameCtx {
+                    i,
+                    t: meta.timestamp_ns as f64 * 1e-9,
+                    img,
+                    views,
+                    cfg,
+                    dots,
+                    ahead: ahead.get(k).unwrap_or(&none),
+                };
+                let spheres = tracker.measure_frame(&cx);
+                out.push(FrameObs {
+                    index: i as u64,
+                    frame_id: meta.frame_id,
+                    time_s: cx.t,
+                    spheres,
+                    position_mm: [None, None],
+                });
+                progress(i + 1, n);
+            }
         };
-        let spheres = tracker.measure_frame(&cx);
-        out.push(FrameObs {
-            index: i as u64,
-            frame_id: meta.frame_id,
-            time_s: cx.t,
-            spheres,
-            position_mm: [None, None],
-        });
-        progress(i + 1, n);
+    let (mut cur, mut cur_meta) = (Vec::new(), Vec::new());
+    read(source, &mut cur, &mut cur_meta, 0)?;
+    let mut first = 0;
+    if threads <= 1 {
+        loop {
+            track(&cur, &cur_meta, &[], first);
+            first += cur.len();
+            if first >= n {
+                break;
+            }
+            read(source, &mut cur, &mut cur_meta, first)?;
+        }
+    } else {
+        let mut cur_ahead = ahead::chunk_ahead(&cur, 0, views, cfg, dots, threads, || {});
+        let (mut next, mut next_meta) = (Vec::new(), Vec::new());
+        loop {
+            let next_first = first + cur.len();
+            if next_first >= n {
+                track(&cur, &cur_meta, &cur_ahead, first);
+                break;
+            }
+            read(source, &mut next, &mut next_meta, next_first)?;
+            let next_ahead =
+                ahead::chunk_ahead(&next, next_first, views, cfg, dots, threads, || {
+                    track(&cur, &cur_meta, &cur_ahead, first)
+                });
+            std::mem::swap(&mut cur, &mut next);
+            std::mem::swap(&mut cur_meta, &mut next_meta);
+            cur_ahead = next_ahead;
+            first = next_first;
+        }
     }
     Ok((out, tracker.unmeasured))
 }
@@ -115,6 +174,8 @@ struct FrameCtx<'a> {
     views: &'a [View],
     cfg: &'a Config,
     dots: &'a DotMasks,
+    /// What was done for this frame ahead, on other threads.
+    ahead: &'a ahead::Ahead,
 }
 
 /// Each sphere's measurement in each view of one frame.
@@ -247,17 +308,20 @@ impl Tracker {
         let dots = cx.dots.get(&(cx.i, vi)).map(Vec::as_slice).unwrap_or(&[]);
         let radius = [0, 1].map(|s| cx.cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
         let r_mean = 0.5 * (radius[0] + radius[1]);
-        let (lv, blobs) = stages::timed(Stage::Detect, || {
-            let lv = levels(cx.img, view);
-            let blobs = find_blobs(
-                cx.img,
-                view,
-                &lv,
-                r_mean,
-                cx.cfg.analysis.threshold_fraction,
-            );
-            (lv, blobs)
-        });
+        let (lv, blobs) = match cx.ahead.detected(vi) {
+            Some(d) => d.clone(),
+            None => stages::timed(Stage::Detect, || {
+                let lv = levels(cx.img, view);
+                let blobs = find_blobs(
+                    cx.img,
+                    view,
+                    &lv,
+                    r_mean,
+                    cx.cfg.analysis.threshold_fraction,
+                );
+                (lv, blobs)
+            }),
+        };
         // Views after the first take identity from it through the x both views see.
         // Where the primary view does not measure a sphere in this frame, its x is
         // extrapolated from the primary's recent frames (x has no gravity: a straight line).
@@ -378,7 +442,10 @@ impl Tracker {
         for (s, blob) in assigned.iter().enumerate() {
             let Some(b) = blob else { continue };
             let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
-            match measure_blob(cx.img, view, b, s, radius[s], other, &lv, cx.cfg, dots) {
+            let ahead = cx.ahead.fit(vi, b, radius[s], other);
+            match measure_blob(
+                cx.img, view, b, s, radius[s], other, &lv, cx.cfg, dots, ahead,
+            ) {
                 Ok((m, f)) => {
                     fitted[s] = Some(f);
                     spheres[s][vi] = Some(m);
@@ -589,7 +656,18 @@ impl Tracker {
             [None, None]
         };
         match labels.iter().position(|l| l.is_some()) {
-            Some(s) => match measure_blob(cx.img, view, blob, s, radius[s], None, lv, cx.cfg, dots0) {
+            Some(s) => match measure_blob(
+                cx.img,
+                view,
+                blob,
+                s,
+                radius[s],
+                None,
+                lv,
+                cx.cfg,
+                dots0,
+                cx.ahead.fit(0, blob, radius[s], None),
+            ) {
                 Ok((m, f)) => {
                     spheres[s][0] = Some(m);
                     self.memory[0].last[s] = Some(f.centre);

@@ -1,0 +1,126 @@
+//! Work done ahead, on other threads: each frame's detection and the circle fits that tracking
+//! will most likely ask for, computed for a chunk of frames in parallel before tracking walks
+//! through them in order. Tracking stays sequential (labels and memory pass from frame to
+//! frame); it takes a fit from here only when it asks for one with exactly the arguments it was
+//! computed with, and computes any other itself. The fits are pure functions of those
+//! arguments, so the report is the same bits whatever the number of threads.
+//!
+//! The guess: in every view, each blob of at most two, with the other blob (if any) as the
+//! other sphere. Spheres of two sizes give no guess (which radius goes with which blob is a
+//! label), so there only detection is done ahead.
+
+use super::measure::{fit_blob, BlobFit};
+use super::DotMasks;
+use crate::analysis::circle::DotMask;
+use crate::analysis::detect::{find_blobs, levels, Blob, ViewLevels};
+use crate::analysis::geometry::View;
+use crate::analysis::image::GreyImage;
+use crate::config::Config;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+/// The exact arguments of one `fit_blob` call besides the frame and the view's dots.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct FitKey {
+    view: usize,
+    centroid: [u64; 2],
+    clipped: bool,
+    radius: u64,
+    other: Option<([u64; 2], u64)>,
+}
+
+impl FitKey {
+    fn new(view: usize, b: &Blob, radius_px: f64, other: Option<([f64; 2], f64)>) -> FitKey {
+        FitKey {
+            view,
+            centroid: b.centroid.map(f64::to_bits),
+            clipped: b.clipped,
+            radius: radius_px.to_bits(),
+            other: other.map(|(c, r)| (c.map(f64::to_bits), r.to_bits())),
+        }
+    }
+}
+
+/// One frame's work done ahead: each view's levels and blobs, and the guessed fits.
+#[derive(Default)]
+pub(super) struct Ahead {
+    detected: Vec<Option<(ViewLevels, Vec<Blob>)>>,
+    fits: Vec<(FitKey, BlobFit)>,
+}
+
+impl Ahead {
+    /// A view's levels and blobs, if detected ahead.
+    pub(super) fn detected(&self, view: usize) -> Option<&(ViewLevels, Vec<Blob>)> {
+        self.detected.get(view).and_then(Option::as_ref)
+    }
+
+    /// The fit computed ahead with exactly these arguments, if any.
+    pub(super) fn fit(
+        &self,
+        view: usize,
+        b: &Blob,
+        radius_px: f64,
+        other: Option<([f64; 2], f64)>,
+    ) -> Option<BlobFit> {
+        let key = FitKey::new(view, b, radius_px, other);
+        self.fits.iter().find(|(k, _)| *k == key).map(|(_, f)| *f)
+    }
+}
+
+/// Detection, and the guessed fits, for one frame.
+fn frame_ahead(img: &GreyImage, i: usize, views: &[View], cfg: &Config, dots: &DotMasks) -> Ahead {
+    let mut out = Ahead::default();
+    for (vi, view) in views.iter().enumerate() {
+        let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
+        let r_mean = 0.5 * (radius[0] + radius[1]);
+        let lv = levels(img, view);
+        let blobs = find_blobs(img, view, &lv, r_mean, cfg.analysis.threshold_fraction);
+        if radius[0] == radius[1] && blobs.len() <= 2 {
+            let view_dots: &[DotMask] = dots.get(&(i, vi)).map(Vec::as_slice).unwrap_or(&[]);
+            for (j, b) in blobs.iter().enumerate().filter(|(_, b)| !b.merged) {
+                let other = (blobs.len() == 2).then(|| (blobs[1 - j].centroid, radius[0]));
+                let fit = fit_blob(img, view, b, radius[0], other, lv.background, view_dots);
+                out.fits.push((FitKey::new(vi, b, radius[0], other), fit));
+            }
+        }
+        out.detected.push(Some((lv, blobs)));
+    }
+    out
+}
+
+/// The work ahead for frames `first..first + imgs.len()`, on `threads` threads, the calling
+/// thread among them once it has run `meanwhile` (tracking the previous chunk: so the other
+/// threads are not idle while it does).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn chunk_ahead(
+    imgs: &[GreyImage],
+    first: usize,
+    views: &[View],
+    cfg: &Config,
+    dots: &DotMasks,
+    threads: usize,
+    meanwhile: impl FnOnce(),
+) -> Vec<Ahead> {
+    let next = AtomicUsize::new(0);
+    let done: Mutex<Vec<Option<Ahead>>> = Mutex::new((0..imgs.len()).map(|_| None).collect());
+    let work = || loop {
+        let k = next.fetch_add(1, Ordering::Relaxed);
+        let Some(img) = imgs.get(k) else { break };
+        let a = frame_ahead(img, first + k, views, cfg, dots);
+        if let Ok(mut d) = done.lock() {
+            d[k] = Some(a);
+        }
+    };
+    std::thread::scope(|scope| {
+        for _ in 1..threads.max(1) {
+            scope.spawn(work);
+        }
+        meanwhile();
+        work();
+    });
+    done.into_inner()
+        .unwrap_or_default()
+        .into_iter()
+        .map(Option::unwrap_or_default)
+        .collect()
+}
