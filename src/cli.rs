@@ -41,13 +41,22 @@ pub(crate) enum Command {
         #[arg(long)]
         config: Option<PathBuf>,
     },
-    /// Re-analyse a recorded session with its own config; the report must equal the recorded one.
+    /// Re-analyse recorded sessions with their own configs; each report must equal the recorded
+    /// one.
     Replay {
-        /// The session directory to analyse again.
-        session: PathBuf,
-        /// Print the report as JSON on stdout instead of the summary.
+        /// Session directories to analyse again, or directories of them (a campaign, a
+        /// sessions directory).
+        #[arg(required = true)]
+        sessions: Vec<PathBuf>,
+        /// Print the report as JSON on stdout instead of the summary (one session only).
         #[arg(long)]
         json: bool,
+        /// Only the sessions at positions i, i + n, i + 2n, … of the sorted list: one task of
+        /// a cluster's array job (`--shard $SLURM_ARRAY_TASK_ID/16`); `impactcam fit` is the
+        /// reduce.
+        #[arg(long, value_name = "i/n")]
+        shard: Option<impactcam::batch::Shard>,
+
         /// Threads to analyse with (default: every core). The report is the same, bit for
         /// bit, whatever the number.
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
@@ -72,9 +81,11 @@ pub(crate) enum Command {
     /// Analyse a session, a multi-page greyscale TIFF recorded elsewhere, or (--tracks) centres
     /// digitised in other software.
     Analyze {
-        /// A session directory or a multi-page greyscale TIFF stack.
+        /// A session directory or a multi-page greyscale TIFF stack; or several sessions, or
+        /// directories of them (a campaign, a sessions directory), each analysed with its own
+        /// config (or --config) and its report.json written into it.
         #[arg(required_unless_present = "tracks", conflicts_with = "tracks")]
-        path: Option<PathBuf>,
+        paths: Vec<PathBuf>,
         /// CSV of digitised centres: frame,sphere,view,u,v[,time_s].
         #[arg(long)]
         tracks: Option<PathBuf>,
@@ -96,6 +107,11 @@ pub(crate) enum Command {
         /// bit, whatever the number.
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
         jobs: Option<u16>,
+        /// Only the sessions at positions i, i + n, i + 2n, … of the sorted list: one task of
+        /// a cluster's array job (`--shard $SLURM_ARRAY_TASK_ID/16`); `impactcam fit` is the
+        /// reduce.
+        #[arg(long, value_name = "i/n")]
+        shard: Option<impactcam::batch::Shard>,
     },
     /// The lab daemon: HTTP API and web page to run and watch experiments.
     Serve {

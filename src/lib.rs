@@ -3,6 +3,7 @@
 //! β, ψ1, ψ2). See docs/ARCHITECTURE.md for the map.
 
 pub mod analysis;
+pub mod batch;
 pub mod bench;
 pub mod calibrate;
 pub mod camera;

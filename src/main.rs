@@ -162,11 +162,18 @@ fn real_main(cli: Cli) -> Result<i32> {
             }
         }
         Command::Replay {
-            session,
+            sessions,
             json,
             jobs,
+            shard,
         } => {
-            impactcam::analysis::set_threads(jobs.map_or(0, usize::from));
+            let jobs = jobs.map_or(0, usize::from);
+            let session = match sessions.as_slice() {
+                [one] if shard.is_none() && impactcam::batch::is_session(one) => one.clone(),
+                _ if json => bail!("--json: one session only (a batch prints a line per session)"),
+                _ => return replay_batch(&sessions, shard, jobs),
+            };
+            impactcam::analysis::set_threads(jobs);
             let report = experiment::analyze_session(&session, None, &mut |_, _| {})?;
             let text = experiment::report_json(&report);
             let recorded = std::fs::read_to_string(session.join("report.json")).ok();
@@ -205,16 +212,32 @@ fn real_main(cli: Cli) -> Result<i32> {
             Ok(0)
         }
         Command::Analyze {
-            path,
+            paths,
             tracks,
             config,
             json,
             out,
             overwrite,
             jobs,
+            shard,
         } => {
-            impactcam::analysis::set_threads(jobs.map_or(0, usize::from));
-            analyze_command(path, tracks, config, json, out, overwrite)
+            let jobs = jobs.map_or(0, usize::from);
+            let single = match paths.as_slice() {
+                [] => None,
+                [one]
+                    if shard.is_none() && (one.is_file() || impactcam::batch::is_session(one)) =>
+                {
+                    Some(one.clone())
+                }
+                _ => {
+                    if json || out.is_some() {
+                        bail!("--json and --out: one input only (a batch writes each session's report.json into it)");
+                    }
+                    return analyze_batch(&paths, config.as_deref(), overwrite, shard, jobs);
+                }
+            };
+            impactcam::analysis::set_threads(jobs);
+            analyze_command(single, tracks, config, json, out, overwrite)
         }
         Command::Serve { config, listen } => {
             let cfg = load_config(config.as_deref())?;
@@ -355,6 +378,134 @@ fn real_main(cli: Cli) -> Result<i32> {
             }
         },
     }
+}
+
+/// The sessions `paths` name, this shard of them, and the threads to run them on: each
+/// analysis on one thread, sessions side by side (a lone session gets every thread).
+fn batch_plan(
+    paths: &[PathBuf],
+    shard: Option<impactcam::batch::Shard>,
+    jobs: usize,
+) -> Result<(Vec<PathBuf>, usize)> {
+    let all = impactcam::batch::sessions(paths)?;
+    let mine = match shard {
+        Some(s) => s.select(&all),
+        None => all.clone(),
+    };
+    let jobs = match jobs {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n,
+    };
+    impactcam::analysis::set_threads(if mine.len() == 1 { jobs } else { 1 });
+    if let Some(s) = shard {
+        Status::new().line(&format!(
+            "shard {}/{}: {} of {} sessions",
+            s.index,
+            s.count,
+            mine.len(),
+            all.len()
+        ));
+    }
+    Ok((mine, jobs))
+}
+
+/// `impactcam replay` of many sessions: each compared with its recorded report, a line per
+/// session as it finishes; exit 2 if any differs, 1 if any could not be analysed.
+fn replay_batch(
+    paths: &[PathBuf],
+    shard: Option<impactcam::batch::Shard>,
+    jobs: usize,
+) -> Result<i32> {
+    #[derive(PartialEq)]
+    enum Outcome {
+        Identical,
+        Differs,
+        NoRecord,
+        Failed(String),
+    }
+    let (sessions, jobs) = batch_plan(paths, shard, jobs)?;
+    let total = sessions.len();
+    let outcomes = impactcam::batch::run(
+        &sessions,
+        jobs,
+        |s| match experiment::analyze_session(s, None, &mut |_, _| {}) {
+            Err(e) => Outcome::Failed(e.to_string()),
+            Ok(report) => match std::fs::read_to_string(s.join("report.json")) {
+                Ok(r) if r == experiment::report_json(&report) => Outcome::Identical,
+                Ok(_) => Outcome::Differs,
+                Err(_) => Outcome::NoRecord,
+            },
+        },
+        |s, o, k| {
+            let what = match o {
+                Outcome::Identical => "identical".to_string(),
+                Outcome::Differs => "DIFFERS from the recorded report.json".to_string(),
+                Outcome::NoRecord => "no report.json to compare with".to_string(),
+                Outcome::Failed(e) => format!("error: {e}"),
+            };
+            eprintln!("[{k}/{total}] {}: {what}", s.display());
+        },
+    );
+    let count = |f: &dyn Fn(&Outcome) -> bool| outcomes.iter().filter(|o| f(o)).count();
+    let differ = count(&|o| *o == Outcome::Differs);
+    let failed = count(&|o| matches!(o, Outcome::Failed(_)));
+    println!(
+        "replayed {total} session(s) on {jobs} thread(s): {} identical, {differ} differ, {} without a recorded report, {failed} failed",
+        count(&|o| *o == Outcome::Identical),
+        count(&|o| *o == Outcome::NoRecord),
+    );
+    Ok(if differ > 0 {
+        2
+    } else if failed > 0 {
+        1
+    } else {
+        0
+    })
+}
+
+/// `impactcam analyze` of many sessions: each analysed with its own config (or `config`) and
+/// its report.json written into it, a line per session as it finishes; exit 1 if any failed.
+fn analyze_batch(
+    paths: &[PathBuf],
+    config: Option<&Path>,
+    overwrite: bool,
+    shard: Option<impactcam::batch::Shard>,
+    jobs: usize,
+) -> Result<i32> {
+    let given = config.map(Config::load).transpose()?;
+    let (sessions, jobs) = batch_plan(paths, shard, jobs)?;
+    if given.is_some() && !overwrite {
+        if let Some(s) = sessions.iter().find(|s| s.join("report.json").exists()) {
+            bail!(
+                "{}: the session's recorded report.json would be replaced by one from another --config; give --overwrite to replace the recorded reports",
+                s.display()
+            );
+        }
+    }
+    let total = sessions.len();
+    let outcomes = impactcam::batch::run(
+        &sessions,
+        jobs,
+        |s| -> Result<(), String> {
+            let report = experiment::analyze_session(s, given.as_ref(), &mut |_, _| {})
+                .map_err(|e| e.to_string())?;
+            impactcam::session::write_atomic(
+                &s.join("report.json"),
+                experiment::report_json(&report).as_bytes(),
+            )
+            .map_err(|e| e.to_string())
+        },
+        |s, o, k| match o {
+            Ok(()) => eprintln!("[{k}/{total}] {}: report.json written", s.display()),
+            Err(e) => eprintln!("[{k}/{total}] {}: error: {e}", s.display()),
+        },
+    );
+    let failed = outcomes.iter().filter(|o| o.is_err()).count();
+    println!(
+        "analysed {total} session(s) on {jobs} thread(s): {} report(s) written, {failed} failed",
+        total - failed
+    );
+    Ok(if failed > 0 { 1 } else { 0 })
 }
 
 /// `impactcam analyze`: a session, a TIFF stack or a tracks CSV; the report beside the input

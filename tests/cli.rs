@@ -345,3 +345,67 @@ fn every_shipped_config_passes_config_check() {
     }
     assert!(n >= 3);
 }
+
+/// Many sessions at once: `replay` and `analyze` over a sessions directory on two threads,
+/// `--shard i/n` taking every n-th, and a session that cannot be analysed named on its own line
+/// without stopping the others.
+#[test]
+fn sessions_in_a_batch_are_replayed_and_analysed_and_sharded() {
+    let tmp = tempfile::tempdir().unwrap();
+    for _ in 0..2 {
+        let out = impactcam(tmp.path(), &["run"]);
+        assert!(out.status.success(), "{}", stderr(&out));
+    }
+    let replay = impactcam(tmp.path(), &["replay", "sessions", "--jobs", "2"]);
+    assert!(replay.status.success(), "{}", stderr(&replay));
+    let text = String::from_utf8_lossy(&replay.stdout);
+    assert!(
+        text.contains("replayed 2 session(s)") && text.contains("2 identical"),
+        "{text}"
+    );
+    assert_eq!(stderr(&replay).matches(": identical").count(), 2);
+
+    // The two shards of two take one session each, and not the same one.
+    let mut taken = Vec::new();
+    for shard in ["0/2", "1/2"] {
+        let out = impactcam(tmp.path(), &["replay", "sessions", "--shard", shard]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let err = stderr(&out);
+        let line = err
+            .lines()
+            .find(|l| l.contains(": identical"))
+            .unwrap_or("")
+            .to_string();
+        assert!(err.contains("1 of 2 sessions"), "{err}");
+        taken.push(line);
+    }
+    assert_ne!(taken[0], taken[1]);
+    let bad = impactcam(tmp.path(), &["replay", "sessions", "--shard", "2/2"]);
+    assert!(!bad.status.success());
+    assert!(stderr(&bad).contains("i/n"), "{}", stderr(&bad));
+
+    // A session whose frames are gone: named with its error; the other's report is written.
+    let mut sessions: Vec<PathBuf> = std::fs::read_dir(tmp.path().join("sessions"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    sessions.sort();
+    std::fs::remove_file(sessions[0].join("report.json")).unwrap();
+    std::fs::remove_file(sessions[1].join("report.json")).unwrap();
+    std::fs::write(sessions[1].join("frames.bin"), b"").unwrap();
+    let out = impactcam(tmp.path(), &["analyze", "sessions", "--jobs", "2"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let err = stderr(&out);
+    let name1 = sessions[1]
+        .file_name()
+        .unwrap()
+        .to_string_lossy()
+        .to_string();
+    assert!(
+        err.lines()
+            .any(|l| l.contains(&name1) && l.contains("error")),
+        "{err}"
+    );
+    assert!(sessions[0].join("report.json").is_file());
+    assert!(!sessions[1].join("report.json").exists());
+}

@@ -601,7 +601,11 @@ where
     // which costs nine times as much per pixel and moves the centres by thousandths of a pixel.
     let mut keep = pixels.to_vec();
     for round in 0..3 {
-        descend(&mut p, &keep, false, 1e-3);
+        // Settled tightly even though only the dots to reject depend on it: the area-integrated
+        // round below converges linearly, so where it starts shows in its result (settling
+        // here at 1e-3 px saved 30 % of the analysis but raised the noise-free scatter with
+        // masked dots from 0.0024 to 0.0028 px: `masked_rim_dots_do_not_move_the_centre`).
+        descend(&mut p, &keep, false, 1e-7);
         if round == 2 {
             break;
         }
