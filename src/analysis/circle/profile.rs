@@ -533,31 +533,44 @@ where
         })
     };
     let n_start = pixels.len();
+    // One pass over the pixels at p: the sum of squared residuals (without the tie), JᵀJ and
+    // Jᵀr. A trial step is evaluated with its Jacobian, so that once accepted the next
+    // iteration need not pass over the pixels again (the same numbers, in the same order, as a
+    // separate cost pass and Jacobian pass).
+    let normal = |p: &Vp<P>, keep: &[RingPixel], area: bool| -> (f64, Mp<P>, Vp<P>) {
+        let mut jtj = Mp::<P>::zeros();
+        let mut jtr = Vp::<P>::zeros();
+        let mut sum_sq = 0.0;
+        for q in keep {
+            let (m, j) = eval(p, q, area);
+            let r = q.grey - m;
+            sum_sq += r * r;
+            // JᵀJ is symmetric: its upper triangle only, mirrored below.
+            for c in 0..P {
+                let jc = j[c];
+                for r in 0..=c {
+                    jtj[(r, c)] += j[r] * jc;
+                }
+            }
+            jtr += j * r;
+        }
+        for c in 0..P {
+            for r in c + 1..P {
+                jtj[(r, c)] = jtj[(c, r)];
+            }
+        }
+        (sum_sq, jtj, jtr)
+    };
     // Levenberg–Marquardt from p on the pixels kept, until the centres move less than
     // `settled_px`; returns the last JᵀJ.
     let descend = |p: &mut Vp<P>, keep: &[RingPixel], area: bool, settled_px: f64| -> Mp<P> {
         let mut lambda = 1e-3;
-        let mut c_now = cost(p, keep, area);
+        let (sum_sq, mut jtj_at_p, mut jtr_at_p) = normal(p, keep, area);
+        let mut c_now = sum_sq + TIE_WEIGHT * tie_residual(p).powi(2);
         let mut jtj = Mp::<P>::zeros();
         for _ in 0..30 {
-            jtj = Mp::<P>::zeros();
-            let mut jtr = Vp::<P>::zeros();
-            for q in keep {
-                let (m, j) = eval(p, q, area);
-                // JᵀJ is symmetric: its upper triangle only, mirrored below.
-                for c in 0..P {
-                    let jc = j[c];
-                    for r in 0..=c {
-                        jtj[(r, c)] += j[r] * jc;
-                    }
-                }
-                jtr += j * (q.grey - m);
-            }
-            for c in 0..P {
-                for r in c + 1..P {
-                    jtj[(r, c)] = jtj[(c, r)];
-                }
-            }
+            jtj = jtj_at_p;
+            let mut jtr = jtr_at_p;
             if let Some(a) = &tie_row {
                 jtj += a * a.transpose() * TIE_WEIGHT;
                 jtr -= a * (TIE_WEIGHT * tie_residual(p));
@@ -576,17 +589,21 @@ where
                     continue;
                 };
                 let trial = *p + step;
-                let c_new = cost(&trial, keep, area);
-                if widths_ok(&trial) && c_new <= c_now {
-                    *p = trial;
-                    c_now = c_new;
-                    lambda = (lambda * 0.3).max(1e-9);
-                    accepted = Some(
-                        (0..N)
-                            .map(|k| step.fixed_rows::<3>(1 + DISC_PARAMS * k).norm())
-                            .fold(0.0, f64::max),
-                    );
-                    break;
+                if widths_ok(&trial) {
+                    let (sum_sq, jtj_t, jtr_t) = normal(&trial, keep, area);
+                    let c_new = sum_sq + TIE_WEIGHT * tie_residual(&trial).powi(2);
+                    if c_new <= c_now {
+                        *p = trial;
+                        c_now = c_new;
+                        (jtj_at_p, jtr_at_p) = (jtj_t, jtr_t);
+                        lambda = (lambda * 0.3).max(1e-9);
+                        accepted = Some(
+                            (0..N)
+                                .map(|k| step.fixed_rows::<3>(1 + DISC_PARAMS * k).norm())
+                                .fold(0.0, f64::max),
+                        );
+                        break;
+                    }
                 }
                 lambda *= 10.0;
             }
