@@ -134,11 +134,13 @@ pub fn analyze_detailed(
         inner: src,
         backdrop,
     };
+    // The first pass's fits where the second masks no dot are the same fits.
+    let memo = tracking::FitMemo::default();
     // Two passes over the frames, each counted as half of the progress: the first finds the
     // markers and spins, the second measures the circles again without the dots that the
     // spins put on each rim.
     let (obs, unmeasured) =
-        tracking::measure_all(src, &views, cfg, &DotMasks::new(), &mut |i, n| {
+        tracking::measure_all(src, &views, cfg, &DotMasks::new(), &memo, &mut |i, n| {
             progress(i / 2, n)
         })?;
     let (warnings, frames_dropped) = (src.warnings(), src.frames_dropped());
@@ -156,7 +158,7 @@ pub fn analyze_detailed(
         return Ok(first);
     }
     stages::set_pass(1);
-    let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, &dots, &mut |i, n| {
+    let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, &dots, &memo, &mut |i, n| {
         progress((n + i) / 2, n)
     })?;
     stages::timed(stages::Stage::Fits, || {

@@ -19,7 +19,14 @@ pub fn measure(
         inner: src,
         backdrop,
     };
-    let (obs, _) = tracking::measure_all(src, &views, cfg, &DotMasks::new(), &mut |_, _| {})?;
+    let (obs, _) = tracking::measure_all(
+        src,
+        &views,
+        cfg,
+        &DotMasks::new(),
+        &tracking::FitMemo::default(),
+        &mut |_, _| {},
+    )?;
     Ok((views, obs))
 }
 

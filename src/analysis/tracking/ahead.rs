@@ -8,6 +8,9 @@
 //! The guess: in every view, each blob of at most two, with the other blob (if any) as the
 //! other sphere. Spheres of two sizes give no guess (which radius goes with which blob is a
 //! label), so there only detection is done ahead.
+//!
+//! `FitMemo` keeps the first pass's fits for the second: where the second pass masks no dot in
+//! a view of a frame, a fit asked for with the same arguments is the same fit, not done again.
 
 use super::measure::{fit_blob, BlobFit};
 use super::DotMasks;
@@ -16,12 +19,13 @@ use crate::analysis::detect::{find_blobs, levels, Blob, ViewLevels};
 use crate::analysis::geometry::View;
 use crate::analysis::image::GreyImage;
 use crate::config::Config;
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 /// The exact arguments of one `fit_blob` call besides the frame and the view's dots.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct FitKey {
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(super) struct FitKey {
     view: usize,
     centroid: [u64; 2],
     clipped: bool,
@@ -30,7 +34,12 @@ struct FitKey {
 }
 
 impl FitKey {
-    fn new(view: usize, b: &Blob, radius_px: f64, other: Option<([f64; 2], f64)>) -> FitKey {
+    pub(super) fn new(
+        view: usize,
+        b: &Blob,
+        radius_px: f64,
+        other: Option<([f64; 2], f64)>,
+    ) -> FitKey {
         FitKey {
             view,
             centroid: b.centroid.map(f64::to_bits),
@@ -67,8 +76,61 @@ impl Ahead {
     }
 }
 
+/// Fits made without dot masks, by frame and arguments: the first pass's, for the second.
+#[derive(Default)]
+pub struct FitMemo {
+    fits: Mutex<HashMap<(usize, FitKey), BlobFit>>,
+}
+
+impl FitMemo {
+    /// Frame `i`'s fit with `key`'s arguments and no dot masked, if made before.
+    pub(super) fn get(&self, i: usize, key: FitKey) -> Option<BlobFit> {
+        self.fits.lock().ok()?.get(&(i, key)).copied()
+    }
+    pub(super) fn put(&self, i: usize, key: FitKey, fit: BlobFit) {
+        if let Ok(mut m) = self.fits.lock() {
+            m.insert((i, key), fit);
+        }
+    }
+
+    /// `fit_blob` for frame `i`, taken from the memo where no dot is masked and it was made
+    /// before, and kept there where no dot is masked.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn fit_blob(
+        &self,
+        i: usize,
+        vi: usize,
+        img: &GreyImage,
+        view: &View,
+        b: &Blob,
+        radius_px: f64,
+        other: Option<([f64; 2], f64)>,
+        background: f64,
+        dots: &[DotMask],
+    ) -> BlobFit {
+        let key = FitKey::new(vi, b, radius_px, other);
+        if dots.is_empty() {
+            if let Some(f) = self.get(i, key) {
+                return f;
+            }
+        }
+        let f = fit_blob(img, view, b, radius_px, other, background, dots);
+        if dots.is_empty() {
+            self.put(i, key, f);
+        }
+        f
+    }
+}
+
 /// Detection, and the guessed fits, for one frame.
-fn frame_ahead(img: &GreyImage, i: usize, views: &[View], cfg: &Config, dots: &DotMasks) -> Ahead {
+fn frame_ahead(
+    img: &GreyImage,
+    i: usize,
+    views: &[View],
+    cfg: &Config,
+    dots: &DotMasks,
+    memo: &FitMemo,
+) -> Ahead {
     let mut out = Ahead::default();
     for (vi, view) in views.iter().enumerate() {
         let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
@@ -79,7 +141,17 @@ fn frame_ahead(img: &GreyImage, i: usize, views: &[View], cfg: &Config, dots: &D
             let view_dots: &[DotMask] = dots.get(&(i, vi)).map(Vec::as_slice).unwrap_or(&[]);
             for (j, b) in blobs.iter().enumerate().filter(|(_, b)| !b.merged) {
                 let other = (blobs.len() == 2).then(|| (blobs[1 - j].centroid, radius[0]));
-                let fit = fit_blob(img, view, b, radius[0], other, lv.background, view_dots);
+                let fit = memo.fit_blob(
+                    i,
+                    vi,
+                    img,
+                    view,
+                    b,
+                    radius[0],
+                    other,
+                    lv.background,
+                    view_dots,
+                );
                 out.fits.push((FitKey::new(vi, b, radius[0], other), fit));
             }
         }
@@ -98,6 +170,7 @@ pub(super) fn chunk_ahead(
     views: &[View],
     cfg: &Config,
     dots: &DotMasks,
+    memo: &FitMemo,
     threads: usize,
     meanwhile: impl FnOnce(),
 ) -> Vec<Ahead> {
@@ -106,7 +179,7 @@ pub(super) fn chunk_ahead(
     let work = || loop {
         let k = next.fetch_add(1, Ordering::Relaxed);
         let Some(img) = imgs.get(k) else { break };
-        let a = frame_ahead(img, first + k, views, cfg, dots);
+        let a = frame_ahead(img, first + k, views, cfg, dots, memo);
         if let Ok(mut d) = done.lock() {
             d[k] = Some(a);
         }

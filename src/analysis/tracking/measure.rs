@@ -56,8 +56,8 @@ pub(super) fn fit_blob(
     }
 }
 
-/// One sphere's measurement from its blob: the circle fit (`fit_blob`, or `ahead`'s when it
-/// was computed ahead with the same arguments), its gates, and the dots inside.
+/// One sphere's measurement from its blob: the circle fit (`fit`, made ahead or kept from the
+/// first pass with the same arguments, else `fit_blob` now), its gates, and the dots inside.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn measure_blob(
     img: &GreyImage,
@@ -69,14 +69,13 @@ pub(super) fn measure_blob(
     lv: &ViewLevels,
     cfg: &Config,
     dots: &[DotMask],
-    ahead: Option<BlobFit>,
+    fit: Option<BlobFit>,
 ) -> Result<(Measurement, CircleFit), String> {
     let name = ["a", "b"][s];
     if b.merged {
         return Err(format!("{name}: silhouettes of a and b merged"));
     }
-    let fit =
-        ahead.unwrap_or_else(|| fit_blob(img, view, b, radius_px, other, lv.background, dots));
+    let fit = fit.unwrap_or_else(|| fit_blob(img, view, b, radius_px, other, lv.background, dots));
     let f = match fit {
         BlobFit::Fitted(f) => f,
         BlobFit::TooFewEdgePoints => {

@@ -20,11 +20,12 @@ mod ahead;
 mod identity;
 mod measure;
 
+pub use ahead::FitMemo;
 use identity::{
     assign, assign_by_continuity, assign_by_prediction, assign_by_x, extrapolate, label_split,
     ViewMemory,
 };
-use measure::{measure_blob, measure_touching};
+use measure::{measure_blob, measure_touching, BlobFit};
 
 #[derive(Clone, Debug)]
 pub struct Measurement {
@@ -62,15 +63,18 @@ fn world_x(view: &View, px: [f64; 2]) -> f64 {
 /// those pixels out. Empty on the first pass, which is what finds the markers and spins.
 pub type DotMasks = HashMap<(usize, usize), Vec<DotMask>>;
 
+/// Every frame measured and labelled; `memo` keeps fits made without dot masks (give the
+/// second pass the first pass's).
 pub fn measure_all(
     source: &mut dyn FrameSource,
     views: &[View],
     cfg: &Config,
     dots: &DotMasks,
+    memo: &FitMemo,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Vec<FrameObs>, Vec<Unmeasured>), AnalysisError> {
     stages::timed(Stage::Measure, || {
-        measure_frames(source, views, cfg, dots, progress)
+        measure_frames(source, views, cfg, dots, memo, progress)
     })
 }
 
@@ -79,6 +83,7 @@ fn measure_frames(
     views: &[View],
     cfg: &Config,
     dots: &DotMasks,
+    memo: &FitMemo,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Vec<FrameObs>, Vec<Unmeasured>), AnalysisError> {
     let mut out = Vec::with_capacity(source.len());
@@ -118,6 +123,7 @@ fn measure_frames(
                     views,
                     cfg,
                     dots,
+                    memo,
                     ahead: ahead.get(k).unwrap_or(&none),
                 };
                 let spheres = tracker.measure_frame(&cx);
@@ -144,7 +150,7 @@ fn measure_frames(
             read(source, &mut cur, &mut cur_meta, first)?;
         }
     } else {
-        let mut cur_ahead = ahead::chunk_ahead(&cur, 0, views, cfg, dots, threads, || {});
+        let mut cur_ahead = ahead::chunk_ahead(&cur, 0, views, cfg, dots, memo, threads, || {});
         let (mut next, mut next_meta) = (Vec::new(), Vec::new());
         loop {
             let next_first = first + cur.len();
@@ -154,7 +160,7 @@ fn measure_frames(
             }
             read(source, &mut next, &mut next_meta, next_first)?;
             let next_ahead =
-                ahead::chunk_ahead(&next, next_first, views, cfg, dots, threads, || {
+                ahead::chunk_ahead(&next, next_first, views, cfg, dots, memo, threads, || {
                     track(&cur, &cur_meta, &cur_ahead, first)
                 });
             std::mem::swap(&mut cur, &mut next);
@@ -174,8 +180,35 @@ struct FrameCtx<'a> {
     views: &'a [View],
     cfg: &'a Config,
     dots: &'a DotMasks,
+    /// Fits made without dot masks (the first pass's, in the second).
+    memo: &'a FitMemo,
     /// What was done for this frame ahead, on other threads.
     ahead: &'a ahead::Ahead,
+}
+
+impl FrameCtx<'_> {
+    /// A blob's fit: done ahead, or kept from the first pass, or done now (None for a merged
+    /// blob, which is not fitted).
+    #[allow(clippy::too_many_arguments)]
+    fn blob_fit(
+        &self,
+        vi: usize,
+        view: &View,
+        b: &Blob,
+        radius_px: f64,
+        other: Option<([f64; 2], f64)>,
+        background: f64,
+        dots: &[DotMask],
+    ) -> Option<BlobFit> {
+        if b.merged {
+            return None;
+        }
+        self.ahead.fit(vi, b, radius_px, other).or_else(|| {
+            Some(self.memo.fit_blob(
+                self.i, vi, self.img, view, b, radius_px, other, background, dots,
+            ))
+        })
+    }
 }
 
 /// Each sphere's measurement in each view of one frame.
@@ -442,10 +475,8 @@ impl Tracker {
         for (s, blob) in assigned.iter().enumerate() {
             let Some(b) = blob else { continue };
             let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
-            let ahead = cx.ahead.fit(vi, b, radius[s], other);
-            match measure_blob(
-                cx.img, view, b, s, radius[s], other, &lv, cx.cfg, dots, ahead,
-            ) {
+            let fit = cx.blob_fit(vi, view, b, radius[s], other, lv.background, dots);
+            match measure_blob(cx.img, view, b, s, radius[s], other, &lv, cx.cfg, dots, fit) {
                 Ok((m, f)) => {
                     fitted[s] = Some(f);
                     spheres[s][vi] = Some(m);
@@ -666,7 +697,7 @@ impl Tracker {
                 lv,
                 cx.cfg,
                 dots0,
-                cx.ahead.fit(0, blob, radius[s], None),
+                cx.blob_fit(0, view, blob, radius[s], None, lv.background, dots0),
             ) {
                 Ok((m, f)) => {
                     spheres[s][0] = Some(m);
