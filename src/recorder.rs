@@ -268,26 +268,38 @@ pub fn record(
 
     let mut failure: Option<String> = None;
     let mut pulse = Some(pulse);
+    // Frames that wait in the queue are written together (`append_batch`): when the disk
+    // falls behind, the index costs one write per burst rather than one per frame.
     let append = |session: &mut SessionWriter,
-                  f: Frame,
+                  batch: &mut Vec<Frame>,
                   saved: &mut Vec<FrameMeta>|
      -> Result<(), SessionError> {
-        let meta = FrameMeta {
-            frame_id: f.frame_id,
-            timestamp_ns: f.timestamp_ns,
-        };
-        session.append(meta, &f.data)?;
-        saved.push(meta);
-        let _ = acq.recycle.send(f.data);
-        Ok(())
+        let metas: Vec<FrameMeta> = batch
+            .iter()
+            .map(|f| FrameMeta {
+                frame_id: f.frame_id,
+                timestamp_ns: f.timestamp_ns,
+            })
+            .collect();
+        let parts: Vec<(FrameMeta, &[u8])> = metas
+            .iter()
+            .zip(batch.iter())
+            .map(|(m, f)| (*m, f.data.as_slice()))
+            .collect();
+        let before = session.manifest().frames_recorded;
+        let result = session.append_batch(&parts);
+        let written = (session.manifest().frames_recorded - before) as usize;
+        saved.extend_from_slice(&metas[..written.min(metas.len())]);
+        for f in batch.drain(..) {
+            let _ = acq.recycle.send(f.data);
+        }
+        result
     };
     let mut write_error = None;
     let mut last_frame_at = std::time::Instant::now();
-    for f in ring.drain(..) {
-        if let Err(e) = append(&mut session, f, &mut saved) {
-            write_error = Some(e);
-            break;
-        }
+    let mut batch: Vec<Frame> = ring.drain(..).collect();
+    if let Err(e) = append(&mut session, &mut batch, &mut saved) {
+        write_error = Some(e);
     }
     while write_error.is_none() && (saved.len() as u64) < total {
         if abort.load(Ordering::Relaxed) {
@@ -308,13 +320,31 @@ pub fn record(
         match acq.rx.recv_timeout(Duration::from_millis(100)) {
             Ok(Ok(f)) => {
                 last_frame_at = std::time::Instant::now();
-                if let Err(e) = append(&mut session, f, &mut saved) {
+                let before = saved.len() as u64;
+                batch.push(f);
+                // Whatever else is already waiting, up to the frames still wanted.
+                let mut camera_error = None;
+                while (before + batch.len() as u64) < total && batch.len() < MAX_BATCH_FRAMES {
+                    match acq.rx.try_recv() {
+                        Ok(Ok(f)) => batch.push(f),
+                        Ok(Err(e)) => {
+                            camera_error = Some(e.to_string());
+                            break;
+                        }
+                        Err(_) => break,
+                    }
+                }
+                if let Err(e) = append(&mut session, &mut batch, &mut saved) {
                     write_error = Some(e);
                     break;
                 }
                 let n = saved.len() as u64;
-                if n.is_multiple_of(10) || n == total {
+                if n / 10 > before / 10 || n == total {
                     progress(Progress::Frames { recorded: n, total });
+                }
+                if let Some(e) = camera_error {
+                    failure = Some(e);
+                    break;
                 }
             }
             Ok(Err(e)) => {
@@ -462,6 +492,9 @@ fn mem_available_bytes() -> Option<u64> {
 }
 
 /// What `stream_to_ram` measured.
+/// The most frames written in one go (`SessionWriter::append_batch`).
+const MAX_BATCH_FRAMES: usize = 64;
+
 pub struct RamStats {
     pub frames_received: u64,
     /// Frames lost because the queue was full (the consumer fell behind).

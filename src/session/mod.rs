@@ -267,26 +267,50 @@ impl SessionWriter {
     /// Appends one frame: pixels first, then its index line, so an indexed frame is always
     /// complete on disk.
     pub fn append(&mut self, meta: FrameMeta, data: &[u8]) -> Result<(), SessionError> {
-        if data.len() != self.frame_bytes {
-            return Err(SessionError::Format {
-                path: self.dir.join("frames.bin"),
-                message: format!(
-                    "frame {} has {} bytes, expected {}",
-                    meta.frame_id,
-                    data.len(),
-                    self.frame_bytes
-                ),
-            });
+        self.append_batch(&[(meta, data)])
+    }
+
+    /// Appends frames in order: each frame's pixels, then the index entries of all those
+    /// written, in one write — a frame counts only once both are on disk, and a burst of frames
+    /// costs one index write instead of one per frame. If a frame's pixels fail, the frames
+    /// before it are still indexed, and the error is returned.
+    pub fn append_batch(&mut self, frames: &[(FrameMeta, &[u8])]) -> Result<(), SessionError> {
+        let mut failed = None;
+        let mut written = 0;
+        for (meta, data) in frames {
+            if data.len() != self.frame_bytes {
+                failed = Some(SessionError::Format {
+                    path: self.dir.join("frames.bin"),
+                    message: format!(
+                        "frame {} has {} bytes, expected {}",
+                        meta.frame_id,
+                        data.len(),
+                        self.frame_bytes
+                    ),
+                });
+                break;
+            }
+            if let Err(e) = self.frames.write_all(data) {
+                failed = Some(io_err(&self.dir.join("frames.bin"), e));
+                break;
+            }
+            written += 1;
         }
-        self.frames
-            .write_all(data)
-            .map_err(|e| io_err(&self.dir.join("frames.bin"), e))?;
-        let line = format!("{},{}\n", meta.frame_id, meta.timestamp_ns);
-        self.index
-            .write_all(line.as_bytes())
-            .map_err(|e| io_err(&self.dir.join("frames.idx"), e))?;
-        self.manifest.frames_recorded += 1;
-        Ok(())
+        let mut lines = String::with_capacity(32 * written);
+        for (meta, _) in &frames[..written] {
+            use std::fmt::Write as _;
+            let _ = writeln!(lines, "{},{}", meta.frame_id, meta.timestamp_ns);
+        }
+        if written > 0 {
+            self.index
+                .write_all(lines.as_bytes())
+                .map_err(|e| io_err(&self.dir.join("frames.idx"), e))?;
+            self.manifest.frames_recorded += written as u64;
+        }
+        match failed {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
     }
 
     pub fn write_manifest(&self) -> Result<(), SessionError> {
@@ -651,5 +675,31 @@ mod tests {
             .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
             .collect();
         assert!(leftovers.is_empty(), "{leftovers:?}");
+    }
+
+    #[test]
+    fn a_batch_indexes_the_frames_before_one_that_fails() {
+        let tmp = tempfile::tempdir().unwrap();
+        let cfg = Config::default_config();
+        let mut w = SessionWriter::create(tmp.path(), &info(), trig(), &cfg).unwrap();
+        let meta = |k: u64| FrameMeta {
+            frame_id: k,
+            timestamp_ns: k * 10,
+        };
+        let (good, short) = ([5u8; 12], [6u8; 11]);
+        w.append_batch(&[(meta(0), &good[..]), (meta(1), &good[..])])
+            .unwrap();
+        let err = w
+            .append_batch(&[
+                (meta(2), &good[..]),
+                (meta(3), &short[..]),
+                (meta(4), &good[..]),
+            ])
+            .unwrap_err();
+        assert!(err.to_string().contains("frame 3 has 11 bytes"), "{err}");
+        let dir = w.finish(Status::Failed, None).unwrap();
+        let r = SessionReader::open(&dir).unwrap();
+        assert_eq!(r.frames, vec![meta(0), meta(1), meta(2)]);
+        assert_eq!(r.manifest.frames_recorded, 3);
     }
 }
