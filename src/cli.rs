@@ -242,6 +242,10 @@ pub(crate) enum BenchWhat {
         /// validation` reads).
         #[arg(long)]
         validation: Option<PathBuf>,
+        /// Also time OpenCV's HoughCircles on the same frames, with this Python (one that has
+        /// `cv2`, e.g. a venv with opencv-python-headless).
+        #[arg(long, value_name = "PYTHON")]
+        opencv: Option<PathBuf>,
         /// Where sessions are recorded while they are timed (removed afterwards).
         #[arg(long, default_value = ".")]
         dir: PathBuf,

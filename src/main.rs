@@ -328,14 +328,19 @@ fn real_main(cli: Cli) -> Result<i32> {
             BenchWhat::Analysis {
                 experiments,
                 validation,
+                opencv,
                 dir,
             } => {
                 if experiments == 0 && validation.is_none() {
                     bail!("--experiments 0 without --validation times nothing");
                 }
                 let tmp = dir.join(format!(".impactcam-bench-analysis-{}", std::process::id()));
-                let result =
-                    impactcam::bench::analysis::analysis(experiments, validation.as_deref(), &tmp);
+                let result = impactcam::bench::analysis::analysis(
+                    experiments,
+                    validation.as_deref(),
+                    opencv.as_deref(),
+                    &tmp,
+                );
                 let _ = std::fs::remove_dir_all(&tmp);
                 print!("{}", result.map_err(anyhow::Error::msg)?);
                 Ok(0)

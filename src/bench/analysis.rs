@@ -3,6 +3,8 @@
 //! the same frames: reading and decoding them, and a plain threshold + moments centroid (the
 //! cheapest thing that finds spheres at all, implemented here). Frames come from hw-sim
 //! sessions drawn with varied looks and, when given, from an independent renderer's recordings.
+//! With `--opencv PYTHON` (a Python with `cv2`), OpenCV's HoughCircles on the same frames is a
+//! third baseline (`scripts/opencv-baseline.py`, embedded here).
 
 use super::validation::config_from_calibration;
 use crate::analysis::geometry::{self, View};
@@ -40,6 +42,40 @@ struct Timing {
     centroid_s: f64,
     analysis_s: f64,
     stages: StageTimes,
+    /// OpenCV's HoughCircles on the same frames, s (with `--opencv`).
+    opencv_s: Option<f64>,
+}
+
+/// `scripts/opencv-baseline.py`, written next to the sessions when `--opencv` is given.
+const OPENCV_SCRIPT: &str = include_str!("../../scripts/opencv-baseline.py");
+
+/// OpenCV's HoughCircles CPU time on `path`'s frames, s, run by `python` on `script`.
+fn opencv_time(python: &Path, script: &Path, path: &Path, cfg: &Config) -> Result<f64, String> {
+    let radii: Vec<f64> = geometry::views(cfg)
+        .iter()
+        .flat_map(|v| [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * v.px_per_mm))
+        .collect();
+    let r_min = radii.iter().copied().fold(f64::INFINITY, f64::min) * 0.8;
+    let r_max = radii.iter().copied().fold(0.0, f64::max) * 1.25;
+    let out = std::process::Command::new(python)
+        .arg(script)
+        .arg(path)
+        .arg(format!("{r_min:.2}"))
+        .arg(format!("{r_max:.2}"))
+        .output()
+        .map_err(|e| format!("--opencv {}: {e}", python.display()))?;
+    if !out.status.success() {
+        return Err(format!(
+            "--opencv {}: {}",
+            python.display(),
+            String::from_utf8_lossy(&out.stderr).trim()
+        ));
+    }
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .map_err(|e| format!("--opencv: the script's output is not JSON: {e}"))?;
+    v["cpu_s"]
+        .as_f64()
+        .ok_or_else(|| "--opencv: the script's output has no cpu_s".to_string())
 }
 
 /// The baseline: in each view, the grey level halfway between the view's darkest and brightest
@@ -125,7 +161,7 @@ pub fn threshold_centroids(
 /// Times one input: decoding all frames, the centroid baseline on the decoded frames, and the
 /// whole analysis with its stages. The baselines are the best of three runs (they are short
 /// enough for a timer tick to matter); the analysis runs once.
-fn time_input(path: &Path, cfg: &Config) -> Result<Timing, String> {
+fn time_input(path: &Path, cfg: &Config, opencv: Option<(&Path, &Path)>) -> Result<Timing, String> {
     let open = || {
         source::open(path, Some(cfg.camera.frame_rate_hz))
             .map_err(|e| format!("{}: {e}", path.display()))
@@ -165,12 +201,16 @@ fn time_input(path: &Path, cfg: &Config) -> Result<Timing, String> {
     let analysis_s = thread_cpu_s() - t0;
     let stages = stages::take();
     result.map_err(|e| format!("{}: {e}", path.display()))?;
+    let opencv_s = opencv
+        .map(|(python, script)| opencv_time(python, script, path, cfg))
+        .transpose()?;
     Ok(Timing {
         frames: n,
         decode_s,
         centroid_s,
         analysis_s,
         stages,
+        opencv_s,
     })
 }
 
@@ -198,6 +238,7 @@ struct Group {
     centroid_s: f64,
     analysis_s: f64,
     stages: StageTimes,
+    opencv_s: Option<f64>,
     failed: Vec<String>,
     inputs: usize,
 }
@@ -211,6 +252,9 @@ impl Group {
                 self.decode_s += t.decode_s;
                 self.centroid_s += t.centroid_s;
                 self.analysis_s += t.analysis_s;
+                if let Some(o) = t.opencv_s {
+                    *self.opencv_s.get_or_insert(0.0) += o;
+                }
                 for p in 0..2 {
                     for s in 0..STAGES {
                         self.stages[p][s] += t.stages[p][s];
@@ -253,6 +297,9 @@ impl Group {
         };
         row("read and decode the frames (baseline)", dec);
         row("threshold + moments centroid (baseline)", cen);
+        if let Some(o) = self.opencv_s {
+            row("OpenCV HoughCircles (baseline, --opencv)", per(o));
+        }
         row("whole analysis", per(self.analysis_s));
         let st = |p: usize, s: Stage| self.stages[p][s as usize];
         let inner = |p: usize| {
@@ -294,6 +341,13 @@ impl Group {
             "  not in a stage (setup, dot masks)",
             per(self.analysis_s - accounted),
         );
+        if let Some(o) = self.opencv_s {
+            let _ = writeln!(
+                out,
+                "  whole analysis / OpenCV HoughCircles: {:.1}× (the goal is about 2.5×)",
+                self.analysis_s / o.max(1e-12)
+            );
+        }
     }
 }
 
@@ -302,8 +356,29 @@ impl Group {
 pub fn analysis(
     experiments: usize,
     validation: Option<&Path>,
+    opencv: Option<&Path>,
     dir: &Path,
 ) -> Result<String, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let script = dir.join("opencv-baseline.py");
+    if let Some(python) = opencv {
+        let ok = std::process::Command::new(python)
+            .args(["-c", "import cv2"])
+            .output()
+            .map_err(|e| format!("--opencv {}: {e}", python.display()))?;
+        if !ok.status.success() {
+            return Err(format!(
+                "--opencv {}: expected a Python with cv2 (pip install opencv-python-headless): {}",
+                python.display(),
+                String::from_utf8_lossy(&ok.stderr)
+                    .lines()
+                    .last()
+                    .unwrap_or("")
+            ));
+        }
+        std::fs::write(&script, OPENCV_SCRIPT).map_err(|e| format!("{}: {e}", script.display()))?;
+    }
+    let opencv = opencv.map(|p| (p, script.as_path()));
     let mut out = String::from(
         "impactcam bench analysis — CPU time per frame on one thread; ratios against baselines on the same frames in this run\n",
     );
@@ -312,7 +387,7 @@ pub fn analysis(
     let mut sim = Group::default();
     for i in 0..experiments as u64 {
         let (session, cfg) = record(2000 + i, dir)?;
-        sim.add(time_input(&session, &cfg));
+        sim.add(time_input(&session, &cfg, opencv));
         let _ = std::fs::remove_dir_all(&session);
     }
     sim.print("hw-sim sessions, varied looks (240×192, 2 views)", &mut out);
@@ -329,7 +404,7 @@ pub fn analysis(
                 .map_err(|e| format!("{}: {e}", d.display()))
                 .and_then(|t| serde_json::from_str(&t).map_err(|e| format!("{}: {e}", d.display())))
                 .and_then(|v| config_from_calibration(&v));
-            group.add(cfg.and_then(|c| time_input(&d.join("frames.tif"), &c)));
+            group.add(cfg.and_then(|c| time_input(&d.join("frames.tif"), &c, opencv)));
         }
         group.print(
             &format!("independent renderer ({})", vdir.display()),
