@@ -50,21 +50,33 @@ impl Daemon {
 
     /// (status, body) of a request with exactly these header lines (each ending in CRLF).
     fn raw(&self, method: &str, path: &str, headers: &str, body: &str) -> (u16, String) {
+        let (status, bytes) = self.raw_bytes(method, path, headers, body);
+        (status, String::from_utf8_lossy(&bytes).into_owned())
+    }
+
+    /// (status, body bytes) of a request with exactly these header lines.
+    fn raw_bytes(&self, method: &str, path: &str, headers: &str, body: &str) -> (u16, Vec<u8>) {
         let mut s = TcpStream::connect(&self.addr).unwrap();
         s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
         write!(s, "{method} {path} HTTP/1.1\r\nConnection: close\r\n{headers}Content-Length: {}\r\n\r\n{body}", body.len()).unwrap();
-        let mut out = String::new();
-        s.read_to_string(&mut out).unwrap();
-        let status = out
+        let mut out = Vec::new();
+        s.read_to_end(&mut out).unwrap();
+        let head_end = out
+            .windows(4)
+            .position(|w| w == b"\r\n\r\n")
+            .unwrap_or(out.len());
+        let head = String::from_utf8_lossy(&out[..head_end]).into_owned();
+        let status = head
             .split_whitespace()
             .nth(1)
             .and_then(|c| c.parse().ok())
             .unwrap_or(0);
-        let body = out
-            .split_once("\r\n\r\n")
-            .map(|(_, b)| b.to_string())
-            .unwrap_or_default();
-        (status, body)
+        (status, out[(head_end + 4).min(out.len())..].to_vec())
+    }
+
+    /// (status, body bytes) of a GET.
+    fn get_bytes(&self, path: &str) -> (u16, Vec<u8>) {
+        self.raw_bytes("GET", path, &format!("Host: {}\r\n", self.addr), "")
     }
 
     fn start_experiment(&self, body: &str) -> String {
@@ -559,4 +571,72 @@ fn sigterm_exits_within_a_second_with_an_event_stream_open() {
     let took = t0.elapsed();
     assert_eq!(status.code(), Some(0));
     assert!(took < Duration::from_secs(1), "exit took {took:?}");
+}
+
+/// The session viewer's routes: every session listed, its report, and any frame as a PNG, the
+/// overlay drawing the measurement on it; names that would leave the sessions directory, and
+/// frames that do not exist, are refused with a message.
+#[test]
+fn sessions_are_listed_and_their_frames_drawn_with_the_measurement() {
+    let d = Daemon::start(None, "");
+    let id = d.start_experiment("{}");
+    let done = d.wait_done(&id);
+    assert_eq!(done["status"], "done", "{done}");
+    let session = done["session"].as_str().unwrap().to_string();
+
+    let list = d.json("/api/sessions");
+    let listed = list["sessions"].as_array().unwrap();
+    assert!(
+        listed.iter().any(|s| s["name"] == session.as_str()
+            && s["analysed"] == true
+            && s["e"]["value"].is_f64()),
+        "{list}"
+    );
+    let one = d.json(&format!("/api/sessions/{session}"));
+    assert_eq!(one["manifest"]["status"], "complete");
+    let k = one["report"]["impact"]["frame"].as_u64().unwrap();
+
+    let (code, raw) = d.get_bytes(&format!("/api/sessions/{session}/frames/{k}.png"));
+    assert_eq!(code, 200);
+    assert!(raw.starts_with(b"\x89PNG"), "a PNG");
+    let (code, drawn) = d.get_bytes(&format!("/api/sessions/{session}/frames/{k}.png?overlay=1"));
+    assert_eq!(code, 200);
+    assert!(drawn.starts_with(b"\x89PNG"));
+    assert_ne!(raw, drawn, "the overlay draws on the impact frame");
+
+    let (code, report) = d.get_bytes(&format!("/api/sessions/{session}/report.json"));
+    assert_eq!(code, 200);
+    let on_disk =
+        std::fs::read(d.dir().join("sessions").join(&session).join("report.json")).unwrap();
+    assert_eq!(report, on_disk);
+
+    for (path, want, says) in [
+        (
+            "/api/sessions/..%2F..%2Fetc/frames/0.png",
+            400,
+            "not a session name",
+        ),
+        ("/api/sessions/.hidden", 400, "not a session name"),
+        ("/api/sessions/a%2Fb/report.json", 400, "not a session name"),
+        ("/api/sessions/nosuch", 404, "no session nosuch"),
+    ] {
+        let (code, body) = d.request("GET", path, "", None);
+        assert_eq!(code, want, "{path}: {body}");
+        assert!(body.contains(says), "{path}: {body}");
+    }
+    let (code, body) = d.request(
+        "GET",
+        &format!("/api/sessions/{session}/frames/99999.png"),
+        "",
+        None,
+    );
+    assert_eq!(code, 404, "{body}");
+    assert!(body.contains("frames (0 to"), "{body}");
+    let (code, body) = d.request(
+        "GET",
+        &format!("/api/sessions/{session}/frames/x.png"),
+        "",
+        None,
+    );
+    assert_eq!(code, 400, "{body}");
 }

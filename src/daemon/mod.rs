@@ -10,6 +10,7 @@
 
 pub mod guard;
 mod listen;
+mod sessions;
 mod views;
 
 use crate::config::Config;
@@ -182,6 +183,10 @@ pub fn serve(
             .route("/api/experiments/{id}/events", get(views::events_sse))
             .route("/api/experiments/{id}/trajectory.svg", get(views::trajectory))
             .route("/api/experiments/{id}/impact.png", get(views::impact_frame))
+            .route("/api/sessions", get(sessions::list))
+            .route("/api/sessions/{name}", get(sessions::one))
+            .route("/api/sessions/{name}/report.json", get(sessions::report))
+            .route("/api/sessions/{name}/frames/{file}", get(sessions::frame))
             .route("/api/login", post(login))
             .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
             .layer(axum::middleware::from_fn_with_state(state.clone(), refuse_forged))

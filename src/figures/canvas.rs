@@ -94,6 +94,13 @@ impl Raster {
         }
     }
 
+    pub fn width(&self) -> usize {
+        self.w
+    }
+    pub fn height(&self) -> usize {
+        self.h
+    }
+
     /// A raster showing a greyscale camera frame (8-bit scale values).
     pub fn from_grey(w: usize, h: usize, grey: &[f32]) -> Raster {
         let px = grey.iter().flat_map(|&g| {

@@ -1,0 +1,243 @@
+//! The session viewer's routes: every session under the sessions directory (recorded by this
+//! daemon or not), its manifest and report, and any of its frames as a PNG, with the
+//! measurement drawn on it on request (`?overlay=1`). A session name from a request must be one
+//! plain directory name directly under the sessions directory, checked before anything is
+//! opened: nothing outside it can be named.
+
+use super::{error, Shared};
+use crate::analysis::report::Report;
+use crate::figures::canvas::{Canvas, Raster};
+use axum::extract::{Path, State};
+use axum::http::StatusCode;
+use axum::http::Uri;
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde_json::{json, Value};
+use std::path::PathBuf;
+
+/// The most sessions `/api/sessions` lists (newest first).
+const MAX_SESSIONS_LISTED: usize = 10_000;
+
+/// The session directory `name` names, or the response saying why there is none: a name is 1
+/// to 128 of `A-Za-z0-9._-`, not starting with a dot, and a session (it holds `session.json`).
+fn session_dir(state: &Shared, name: &str) -> Result<PathBuf, (StatusCode, String)> {
+    let plain = !name.is_empty()
+        && name.len() <= 128
+        && !name.starts_with('.')
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'-'));
+    if !plain {
+        return Err((
+            StatusCode::BAD_REQUEST,
+            format!("{name:?} is not a session name: expected 1 to 128 of A-Za-z0-9._- not starting with a dot"),
+        ));
+    }
+    let dir = state.cfg.recording.dir.join(name);
+    if !crate::batch::is_session(&dir) {
+        return Err((
+            StatusCode::NOT_FOUND,
+            format!("no session {name} in the sessions directory"),
+        ));
+    }
+    Ok(dir)
+}
+
+fn read_json(path: &std::path::Path) -> Option<Value> {
+    serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()
+}
+
+/// `GET /api/sessions`: name, status, frames and e (when analysed) of each session, newest
+/// first.
+pub(super) async fn list(State(state): State<Shared>) -> Response {
+    let dir = state.cfg.recording.dir.clone();
+    let listed = tokio::task::spawn_blocking(move || {
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .map(|entries| {
+                entries
+                    .filter_map(|e| e.ok())
+                    .filter(|e| crate::batch::is_session(&e.path()))
+                    .filter_map(|e| e.file_name().into_string().ok())
+                    .collect()
+            })
+            .unwrap_or_default();
+        names.sort_unstable_by(|a, b| b.cmp(a));
+        names.truncate(MAX_SESSIONS_LISTED);
+        names
+            .into_iter()
+            .map(|name| {
+                let manifest = read_json(&dir.join(&name).join("session.json"));
+                let report = read_json(&dir.join(&name).join("report.json"));
+                json!({
+                    "name": name,
+                    "status": manifest.as_ref().map(|m| m["status"].clone()),
+                    "frames_recorded": manifest.as_ref().map(|m| m["frames_recorded"].clone()),
+                    "analysed": report.is_some(),
+                    "e": report.as_ref().map(|r| r["e"].clone()),
+                })
+            })
+            .collect::<Vec<Value>>()
+    })
+    .await
+    .unwrap_or_default();
+    Json(json!({ "sessions": listed })).into_response()
+}
+
+/// `GET /api/sessions/{name}`: the manifest and the report (null before analysis).
+pub(super) async fn one(State(state): State<Shared>, Path(name): Path<String>) -> Response {
+    let dir = match session_dir(&state, &name) {
+        Ok(d) => d,
+        Err((status, message)) => return error(status, message),
+    };
+    Json(json!({
+        "name": name,
+        "manifest": read_json(&dir.join("session.json")),
+        "report": read_json(&dir.join("report.json")),
+    }))
+    .into_response()
+}
+
+/// `GET /api/sessions/{name}/report.json`: the report as recorded, for download.
+pub(super) async fn report(State(state): State<Shared>, Path(name): Path<String>) -> Response {
+    let dir = match session_dir(&state, &name) {
+        Ok(d) => d,
+        Err((status, message)) => return error(status, message),
+    };
+    match std::fs::read(dir.join("report.json")) {
+        Ok(bytes) => (
+            [
+                ("content-type", "application/json"),
+                (
+                    "content-disposition",
+                    "attachment; filename=\"report.json\"",
+                ),
+            ],
+            bytes,
+        )
+            .into_response(),
+        Err(_) => error(
+            StatusCode::NOT_FOUND,
+            format!("session {name} has no report.json (not analysed)"),
+        ),
+    }
+}
+
+/// `GET /api/sessions/{name}/frames/{k}.png[?overlay=1]`: frame k (0-based, in recording order)
+/// as a PNG; with the overlay, the views' regions (yellow; magenta where the frame has a view
+/// not measured, with the reasons in the report's `quality.unmeasured`), the measured circles
+/// and centres (a blue, b red), the markers found (green), and a red border on the impact frame.
+pub(super) async fn frame(
+    State(state): State<Shared>,
+    Path((name, file)): Path<(String, String)>,
+    uri: Uri,
+) -> Response {
+    let dir = match session_dir(&state, &name) {
+        Ok(d) => d,
+        Err((status, message)) => return error(status, message),
+    };
+    let Some(k) = file
+        .strip_suffix(".png")
+        .and_then(|n| n.parse::<usize>().ok())
+    else {
+        return error(
+            StatusCode::BAD_REQUEST,
+            format!("{file:?}: expected FRAME.png with FRAME a frame number from 0"),
+        );
+    };
+    // The one query key, read by hand (no query-string parser in the tree for one flag).
+    let overlay = uri.query().is_some_and(|q| {
+        q.split('&')
+            .any(|kv| kv == "overlay=1" || kv == "overlay=true")
+    });
+    let png = tokio::task::spawn_blocking(move || draw_frame(&dir, k, overlay)).await;
+    match png {
+        Ok(Ok(bytes)) => ([("content-type", "image/png")], bytes).into_response(),
+        Ok(Err((status, e))) => error(status, e),
+        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
+    }
+}
+
+fn draw_frame(
+    dir: &std::path::Path,
+    k: usize,
+    overlay: bool,
+) -> Result<Vec<u8>, (StatusCode, String)> {
+    let internal = |e: String| (StatusCode::INTERNAL_SERVER_ERROR, e);
+    let mut reader =
+        crate::session::SessionReader::open(dir).map_err(|e| internal(e.to_string()))?;
+    if k >= reader.frames.len() {
+        return Err((
+            StatusCode::NOT_FOUND,
+            format!(
+                "frame {k}: the session has {} frames (0 to {})",
+                reader.frames.len(),
+                reader.frames.len().saturating_sub(1)
+            ),
+        ));
+    }
+    let mut raw = Vec::new();
+    reader
+        .read_frame(k, &mut raw)
+        .map_err(|e| internal(e.to_string()))?;
+    let mut img = crate::analysis::image::GreyImage::new();
+    img.load(
+        &raw,
+        reader.width as usize,
+        reader.height as usize,
+        reader.bytes_per_pixel,
+    );
+    let mut r = Raster::from_grey(img.width, img.height, &img.data);
+    if overlay {
+        let report: Option<Report> = std::fs::read_to_string(dir.join("report.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str(&t).ok());
+        draw_overlay(&mut r, reader.config(), report.as_ref(), k);
+    }
+    r.png().map_err(|e| internal(e.to_string()))
+}
+
+fn draw_overlay(r: &mut Raster, cfg: &crate::config::Config, report: Option<&Report>, k: usize) {
+    const YELLOW: [u8; 3] = [230, 200, 40];
+    const MAGENTA: [u8; 3] = [220, 40, 220];
+    let views = crate::analysis::geometry::views(cfg);
+    for v in &views {
+        let not_measured = report.is_some_and(|rep| {
+            rep.quality
+                .unmeasured
+                .iter()
+                .any(|u| u.frame as usize == k && u.view == v.kind.name())
+        });
+        let [x, y, w, h] = v.region.map(f64::from);
+        let c = if not_measured { MAGENTA } else { YELLOW };
+        let (x1, y1) = (x + w - 0.5, y + h - 0.5);
+        let (x0, y0) = (x + 0.5, y + 0.5);
+        r.line((x0, y0), (x1, y0), c, 0.5);
+        r.line((x1, y0), (x1, y1), c, 0.5);
+        r.line((x1, y1), (x0, y1), c, 0.5);
+        r.line((x0, y1), (x0, y0), c, 0.5);
+    }
+    let Some(rep) = report else { return };
+    for t in rep.tracks.iter().filter(|t| t.frame as usize == k) {
+        for (track, colour) in [(&t.a, [31u8, 119, 180]), (&t.b, [214, 39, 40])] {
+            for v in track.iter().flat_map(|s| [&s.direct, &s.mirror]).flatten() {
+                let c = (v.centre_px[0] + 0.5, v.centre_px[1] + 0.5);
+                if v.diameter_px.is_finite() {
+                    r.circle(c, v.diameter_px / 2.0, colour, false);
+                }
+                r.line((c.0 - 1.5, c.1), (c.0 + 1.5, c.1), colour, 0.5);
+                r.line((c.0, c.1 - 1.5), (c.0, c.1 + 1.5), colour, 0.5);
+                for m in &v.markers_px {
+                    r.circle((m[0] + 0.5, m[1] + 0.5), 1.0, [44, 160, 44], false);
+                }
+            }
+        }
+    }
+    if rep.impact.frame as usize == k {
+        let (w, h) = (r.width() as f64, r.height() as f64);
+        let red = [214, 39, 40];
+        r.line((0.5, 0.5), (w - 0.5, 0.5), red, 1.0);
+        r.line((w - 0.5, 0.5), (w - 0.5, h - 0.5), red, 1.0);
+        r.line((w - 0.5, h - 0.5), (0.5, h - 0.5), red, 1.0);
+        r.line((0.5, h - 0.5), (0.5, 0.5), red, 1.0);
+    }
+}
