@@ -42,6 +42,76 @@ fn http_get(addr: &str, path: &str) -> String {
     String::from_utf8_lossy(&body).into_owned()
 }
 
+/// A page driven over the DevTools protocol.
+struct Cdp {
+    ws: tungstenite::WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>>,
+    next_id: u64,
+}
+
+impl Cdp {
+    /// One DevTools call: its result.
+    fn call(&mut self, method: &str, params: serde_json::Value) -> serde_json::Value {
+        self.next_id += 1;
+        let msg = serde_json::json!({"id": self.next_id, "method": method, "params": params});
+        self.ws.send(Message::Text(msg.to_string().into())).unwrap();
+        loop {
+            if let Message::Text(t) = self.ws.read().unwrap() {
+                let v: serde_json::Value = serde_json::from_str(t.as_str()).unwrap();
+                if v["id"] == self.next_id {
+                    return v["result"].clone();
+                }
+            }
+        }
+    }
+
+    /// A JavaScript expression's value.
+    fn eval(&mut self, expr: &str) -> serde_json::Value {
+        self.call(
+            "Runtime.evaluate",
+            serde_json::json!({"expression": expr, "returnByValue": true}),
+        )["result"]["value"]
+            .clone()
+    }
+
+    /// The page as a PNG, saved under the test's target directory for review.
+    fn screenshot(&mut self, name: &str) -> std::path::PathBuf {
+        let shot = self.call(
+            "Page.captureScreenshot",
+            serde_json::json!({"format": "png"}),
+        );
+        let bytes = base64_decode(shot["data"].as_str().unwrap_or(""));
+        assert!(bytes.starts_with(b"\x89PNG"), "a screenshot");
+        let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("browser");
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        path
+    }
+}
+
+/// Standard base64 (the screenshot's encoding), without a crate for one use.
+fn base64_decode(text: &str) -> Vec<u8> {
+    let value = |c: u8| match c {
+        b'A'..=b'Z' => Some(c - b'A'),
+        b'a'..=b'z' => Some(c - b'a' + 26),
+        b'0'..=b'9' => Some(c - b'0' + 52),
+        b'+' => Some(62),
+        b'/' => Some(63),
+        _ => None,
+    };
+    let mut out = Vec::with_capacity(text.len() * 3 / 4);
+    let (mut acc, mut bits) = (0u32, 0u32);
+    for v in text.bytes().filter_map(value) {
+        acc = (acc << 6) | u32::from(v);
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+        }
+    }
+    out
+}
+
 struct Kill(std::process::Child);
 impl Drop for Kill {
     fn drop(&mut self) {
@@ -109,21 +179,9 @@ fn clicking_run_in_a_browser_shows_the_result() {
         );
         std::thread::sleep(Duration::from_millis(100));
     };
-    let (mut ws, _) = tungstenite::connect(page_ws.as_str()).unwrap();
-    let mut next_id = 0;
-    let mut eval = |expr: &str| -> serde_json::Value {
-        next_id += 1;
-        let msg = serde_json::json!({"id": next_id, "method": "Runtime.evaluate", "params": {"expression": expr, "returnByValue": true}});
-        ws.send(Message::Text(msg.to_string().into())).unwrap();
-        loop {
-            if let Message::Text(t) = ws.read().unwrap() {
-                let v: serde_json::Value = serde_json::from_str(t.as_str()).unwrap();
-                if v["id"] == next_id {
-                    return v["result"]["result"]["value"].clone();
-                }
-            }
-        }
-    };
+    let (ws, _) = tungstenite::connect(page_ws.as_str()).unwrap();
+    let mut cdp = Cdp { ws, next_id: 0 };
+    let mut eval = |expr: &str| cdp.eval(expr);
     let wait_for = |eval: &mut dyn FnMut(&str) -> serde_json::Value,
                     expr: &str,
                     secs: u64|
@@ -168,4 +226,45 @@ fn clicking_run_in_a_browser_shows_the_result() {
     wait_for(&mut eval, "document.getElementById('traj').complete && document.getElementById('traj').naturalWidth > 0", 10);
     // The frame at impact loads too (its element's id was once the impact time's, twice).
     wait_for(&mut eval, "document.getElementById('impact-frame').complete && document.getElementById('impact-frame').naturalWidth > 0", 10);
+
+    // The session viewer: the session is listed, opens at the impact frame with the
+    // measurement drawn, and the drawn frame differs from the raw one.
+    wait_for(
+        &mut eval,
+        "!!document.querySelector('#sessions button')",
+        10,
+    );
+    eval("document.querySelector('#sessions button').click(); true");
+    wait_for(&mut eval, "!document.getElementById('viewer').hidden && document.getElementById('v-impact-mark').textContent === 'impact' && document.getElementById('v-frame').src.includes('overlay=1') && document.getElementById('v-frame').complete && document.getElementById('v-frame').naturalWidth > 0", 10);
+    let e_viewer = eval("document.getElementById('v-e').textContent");
+    assert_eq!(
+        e_viewer.as_str(),
+        Some(e_text.as_str()),
+        "the viewer shows the same e"
+    );
+    eval("window.__differs = undefined; (async () => { const src = document.getElementById('v-frame').src; const [a, b] = await Promise.all([fetch(src), fetch(src.replace('?overlay=1', ''))].map(p => p.then(r => r.arrayBuffer()))); const x = new Uint8Array(a), y = new Uint8Array(b); window.__differs = x.length !== y.length || x.some((v, i) => v !== y[i]); })(); true");
+    let differs = wait_for(
+        &mut eval,
+        "window.__differs === undefined ? '' : String(window.__differs)",
+        10,
+    );
+    assert_eq!(
+        differs.as_str(),
+        Some("true"),
+        "the overlay draws on the impact frame"
+    );
+    // Keyboard: → steps one frame on.
+    let k0 = eval("Number(document.getElementById('v-k').textContent)")
+        .as_f64()
+        .unwrap();
+    eval("document.dispatchEvent(new KeyboardEvent('keydown', {key: 'ArrowRight'})); true");
+    let k1 = eval("Number(document.getElementById('v-k').textContent)")
+        .as_f64()
+        .unwrap();
+    assert_eq!(k1, k0 + 1.0, "→ steps a frame");
+    eval("document.dispatchEvent(new KeyboardEvent('keydown', {key: 'ArrowLeft'})); true");
+    wait_for(&mut eval, "document.getElementById('v-frame').complete && document.getElementById('v-frame').naturalWidth > 0", 10);
+    eval("document.getElementById('viewer').scrollIntoView(); true");
+    let shot = cdp.screenshot("session-viewer.png");
+    eprintln!("screenshot: {}", shot.display());
 }
