@@ -52,6 +52,8 @@ const COMMANDS: &[&[&str]] = &[
     &["bench", "relay"],
     &["bench", "accuracy"],
     &["bench", "validation"],
+    &["bench", "rigs"],
+    &["bench", "analysis"],
 ];
 
 #[test]
