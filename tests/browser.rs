@@ -227,6 +227,9 @@ fn clicking_run_in_a_browser_shows_the_result() {
     // The frame at impact loads too (its element's id was once the impact time's, twice).
     wait_for(&mut eval, "document.getElementById('impact-frame').complete && document.getElementById('impact-frame').naturalWidth > 0", 10);
 
+    // The rig: the devices and the config in use.
+    wait_for(&mut eval, "document.getElementById('config').textContent.includes('\"frame_rate_hz\"') && document.getElementById('devices').textContent.includes('in use: camera sim')", 10);
+
     // The session viewer: the session is listed, opens at the impact frame with the
     // measurement drawn, and the drawn frame differs from the raw one.
     wait_for(

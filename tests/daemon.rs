@@ -640,3 +640,32 @@ fn sessions_are_listed_and_their_frames_drawn_with_the_measurement() {
     );
     assert_eq!(code, 400, "{body}");
 }
+
+/// The rig on the page: the config in use, read-only and without the token, and the devices.
+#[test]
+fn the_config_in_use_and_the_devices_are_shown_without_the_token() {
+    let token = "tok-0123456789abcdef";
+    let d = Daemon::start(None, &format!("[daemon]\ntoken = \"{token}\"\n"));
+    let (code, body) = d.request("GET", "/api/config", "", Some(token));
+    assert_eq!(code, 200, "{body}");
+    assert!(!body.contains(token), "the token is not shown: {body}");
+    let cfg: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(cfg["camera"]["width"], 240);
+    assert_eq!(cfg["daemon"]["token"], "(set, not shown)");
+    // Without the token, nothing.
+    let (code, _) = d.request("GET", "/api/config", "", None);
+    assert_eq!(code, 401);
+    let (code, body) = d.request("GET", "/api/devices", "", Some(token));
+    assert_eq!(code, 200, "{body}");
+    let dev: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert!(dev["camera_backends"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|b| b == "sim"));
+    assert_eq!(dev["in_use"]["camera"], "sim");
+    assert!(
+        dev["serial_ports"].is_array() || dev["serial_ports"]["error"].is_string(),
+        "{dev}"
+    );
+}

@@ -183,6 +183,8 @@ pub fn serve(
             .route("/api/experiments/{id}/events", get(views::events_sse))
             .route("/api/experiments/{id}/trajectory.svg", get(views::trajectory))
             .route("/api/experiments/{id}/impact.png", get(views::impact_frame))
+            .route("/api/config", get(views::config))
+            .route("/api/devices", get(views::devices))
             .route("/api/sessions", get(sessions::list))
             .route("/api/sessions/{name}", get(sessions::one))
             .route("/api/sessions/{name}/report.json", get(sessions::report))

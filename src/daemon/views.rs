@@ -180,3 +180,43 @@ pub(super) async fn impact_frame(State(state): State<Shared>, Path(id): Path<Str
         Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
     }
 }
+
+/// `GET /api/config`: the config in use, read-only, without the token.
+pub(super) async fn config(State(state): State<Shared>) -> Response {
+    let mut cfg = state.cfg.clone();
+    let had_token = cfg.daemon.token.take().is_some();
+    let mut v = serde_json::to_value(&cfg).unwrap_or(Value::Null);
+    if had_token {
+        v["daemon"]["token"] = json!("(set, not shown)");
+    }
+    Json(v).into_response()
+}
+
+/// `GET /api/devices`: the camera backends built in and the serial ports (relay modules). No
+/// network discovery here: it broadcasts, and would disturb a GigE camera the rig holds open
+/// (`impactcam devices` does it).
+pub(super) async fn devices(State(state): State<Shared>) -> Response {
+    let ports = tokio::task::spawn_blocking(|| match serialport::available_ports() {
+        Ok(ports) => json!(ports
+            .iter()
+            .map(|p| json!({"port": p.port_name, "type": format!("{:?}", p.port_type)}))
+            .collect::<Vec<_>>()),
+        Err(e) => json!({"error": e.to_string()}),
+    })
+    .await
+    .unwrap_or(Value::Null);
+    let mut backends = vec!["sim"];
+    if cfg!(feature = "aravis") {
+        backends.push("aravis");
+    }
+    if cfg!(feature = "v4l") {
+        backends.push("v4l");
+    }
+    Json(json!({
+        "camera_backends": backends,
+        "gpio": cfg!(feature = "gpio"),
+        "serial_ports": ports,
+        "in_use": {"camera": state.cfg.camera.backend, "trigger": state.cfg.trigger.backend, "port": state.cfg.trigger.port},
+    }))
+    .into_response()
+}

@@ -180,6 +180,11 @@ impl SessionWriter {
             .file_name()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
+        // The daemon's token is a secret, and sessions are copied, shared and served by the
+        // session viewer; replay does not need it.
+        let mut redacted = config.clone();
+        redacted.daemon.token = None;
+        let config = &redacted;
         let cpath = dir.join("config.toml");
         File::create(&cpath)
             .and_then(|mut f| {
@@ -701,5 +706,18 @@ mod tests {
         let r = SessionReader::open(&dir).unwrap();
         assert_eq!(r.frames, vec![meta(0), meta(1), meta(2)]);
         assert_eq!(r.manifest.frames_recorded, 3);
+    }
+
+    #[test]
+    fn the_daemon_token_is_not_written_into_a_session() {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut cfg = Config::default_config();
+        cfg.daemon.token = Some("a-secret-token-0123456789".into());
+        let w = SessionWriter::create(tmp.path(), &info(), trig(), &cfg).unwrap();
+        let dir = w.finish(Status::Complete, None).unwrap();
+        for file in ["config.toml", "session.json"] {
+            let text = std::fs::read_to_string(dir.join(file)).unwrap();
+            assert!(!text.contains("a-secret-token"), "{file} holds the token");
+        }
     }
 }
