@@ -207,6 +207,14 @@ fn clicking_run_in_a_browser_shows_the_result() {
         rig.contains(", open;") && rig.contains("GB free for sessions"),
         "the page shows the rig's state and the free disk space: {rig}"
     );
+    // Live view: the image is there and changes over time (the sensor's noise, frame to frame).
+    let live_hash = "(() => { const i = document.getElementById('live'); if (!i.complete || !i.naturalWidth) return ''; const c = document.createElement('canvas'); c.width = i.naturalWidth; c.height = i.naturalHeight; const g = c.getContext('2d'); g.drawImage(i, 0, 0); const d = g.getImageData(0, 0, c.width, c.height).data; let h = 0; for (let k = 0; k < d.length; k += 4) h = (h * 31 + d[k]) >>> 0; return String(h); })()";
+    let first = wait_for(&mut eval, live_hash, 10);
+    std::thread::sleep(Duration::from_millis(400));
+    let second = wait_for(&mut eval, live_hash, 10);
+    assert_ne!(first, second, "the live image changes over time");
+    assert!(eval("document.getElementById('live-info').textContent").as_str().unwrap_or("").contains("% saturated"));
+
     eval("document.getElementById('notes').value = 'from the browser'; document.getElementById('run').click(); true");
     let e_text = wait_for(
         &mut eval,

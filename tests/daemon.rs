@@ -669,3 +669,76 @@ fn the_config_in_use_and_the_devices_are_shown_without_the_token() {
         "{dev}"
     );
 }
+
+/// Live view: the current frame as a PNG (two grabs differ, the sensor's noise), what the
+/// analysis sees in it with the exposure, a multipart stream at about 10 frames a second, and
+/// a pause (409) while an experiment records.
+#[test]
+fn live_view_shows_the_camera_while_idle_and_pauses_while_recording() {
+    let d = Daemon::start(None, "");
+    let (code, a) = d.get_bytes("/api/camera/frame.png");
+    assert_eq!(code, 200);
+    assert!(a.starts_with(b"\x89PNG"));
+    std::thread::sleep(Duration::from_millis(150));
+    let (_, b) = d.get_bytes("/api/camera/frame.png?overlay=1");
+    assert!(b.starts_with(b"\x89PNG"));
+    assert_ne!(a, b, "a later frame, drawn on");
+    let overlay = d.json("/api/camera/overlay.json");
+    let views = overlay["measured"].as_array().unwrap();
+    assert_eq!(views.len(), 2, "{overlay}");
+    for v in views {
+        let e = &v["exposure"];
+        assert!(e["saturated_percent"].as_f64().unwrap() >= 0.0, "{v}");
+        let pixels: u64 = e["histogram_16_bins"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_u64().unwrap())
+            .sum();
+        assert_eq!(pixels, 240 * 96, "{v}");
+    }
+
+    // The stream: parts arrive about every 100 ms.
+    let mut s = TcpStream::connect(&d.addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    write!(
+        s,
+        "GET /api/camera/live HTTP/1.1\r\nHost: {}\r\n\r\n",
+        d.addr
+    )
+    .unwrap();
+    let t0 = Instant::now();
+    let mut got = Vec::new();
+    let mut buf = [0u8; 65536];
+    while t0.elapsed() < Duration::from_millis(1200) {
+        if let Ok(n) = s.read(&mut buf) {
+            got.extend_from_slice(&buf[..n]);
+        }
+    }
+    drop(s);
+    let parts = got.windows(7).filter(|w| w == b"--frame").count();
+    assert!(parts >= 5, "{parts} frames in 1.2 s");
+    assert!(
+        String::from_utf8_lossy(&got[..200.min(got.len())]).contains("multipart/x-mixed-replace")
+    );
+
+    // While an experiment records, live view pauses rather than take the camera.
+    std::thread::sleep(Duration::from_millis(150));
+    let id = d.start_experiment("{}");
+    let (code, body) = d.request("GET", "/api/camera/frame.png", "", None);
+    assert_eq!(code, 409, "{body}");
+    assert!(body.contains("pauses"), "{body}");
+    let done = d.wait_done(&id);
+    assert_eq!(done["status"], "done", "{done}");
+    let m = d.json(&format!(
+        "/api/sessions/{}",
+        done["session"].as_str().unwrap()
+    ));
+    assert_eq!(
+        m["manifest"]["frames_dropped"], 0,
+        "live view cost no recorded frame"
+    );
+    let (code, _) = d.get_bytes("/api/camera/frame.png");
+    assert_eq!(code, 200, "live again once it is done");
+}

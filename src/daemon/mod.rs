@@ -10,6 +10,7 @@
 
 pub mod guard;
 mod listen;
+mod live;
 mod sessions;
 mod views;
 
@@ -96,6 +97,8 @@ struct AppState {
     events: broadcast::Sender<(Arc<str>, Arc<str>)>,
     last_error: Mutex<Option<String>>,
     next_id: Mutex<u64>,
+    /// The latest live-view frame.
+    live: live::Live,
 }
 
 type Shared = Arc<AppState>;
@@ -174,6 +177,7 @@ pub fn serve(
             events,
             last_error: Mutex::new(None),
             next_id: Mutex::new(1),
+            live: live::Live::default(),
         });
         let app = Router::new()
             .route("/", get(|| async { Html(PAGE) }))
@@ -183,6 +187,9 @@ pub fn serve(
             .route("/api/experiments/{id}/events", get(views::events_sse))
             .route("/api/experiments/{id}/trajectory.svg", get(views::trajectory))
             .route("/api/experiments/{id}/impact.png", get(views::impact_frame))
+            .route("/api/camera/frame.png", get(live::frame_png))
+            .route("/api/camera/overlay.json", get(live::overlay_json))
+            .route("/api/camera/live", get(live::live_stream))
             .route("/api/config", get(views::config))
             .route("/api/devices", get(views::devices))
             .route("/api/sessions", get(sessions::list))
