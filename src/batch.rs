@@ -95,6 +95,78 @@ impl Shard {
     }
 }
 
+/// What a batch will run: this shard's sessions, of how many found, on how many threads.
+pub struct Plan {
+    pub sessions: Vec<PathBuf>,
+    pub found: usize,
+    pub jobs: usize,
+}
+
+/// The sessions `paths` name, this shard of them, and the threads to run them on (`jobs`, 0:
+/// every core): each analysis on one thread, sessions side by side — a lone session gets every
+/// thread for its frames (`analysis::set_threads`).
+pub fn plan(paths: &[PathBuf], shard: Option<Shard>, jobs: usize) -> Result<Plan, BatchError> {
+    let all = sessions(paths)?;
+    let mine = match shard {
+        Some(s) => s.select(&all),
+        None => all.clone(),
+    };
+    let jobs = match jobs {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n,
+    };
+    crate::analysis::set_threads(if mine.len() == 1 { jobs } else { 1 });
+    Ok(Plan {
+        sessions: mine,
+        found: all.len(),
+        jobs,
+    })
+}
+
+/// What a replay of one session found.
+#[derive(Debug, PartialEq)]
+pub enum ReplayOutcome {
+    Identical,
+    Differs,
+    NoRecord,
+    Failed(String),
+}
+
+impl std::fmt::Display for ReplayOutcome {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ReplayOutcome::Identical => write!(f, "identical"),
+            ReplayOutcome::Differs => write!(f, "DIFFERS from the recorded report.json"),
+            ReplayOutcome::NoRecord => write!(f, "no report.json to compare with"),
+            ReplayOutcome::Failed(e) => write!(f, "error: {e}"),
+        }
+    }
+}
+
+/// Analyses `session` again with its own config and compares the report's bytes with the
+/// recorded one.
+pub fn replay_one(session: &Path) -> ReplayOutcome {
+    match crate::experiment::analyze_session(session, None, &mut |_, _| {}) {
+        Err(e) => ReplayOutcome::Failed(e.to_string()),
+        Ok(report) => match std::fs::read_to_string(session.join("report.json")) {
+            Ok(r) if r == crate::experiment::report_json(&report) => ReplayOutcome::Identical,
+            Ok(_) => ReplayOutcome::Differs,
+            Err(_) => ReplayOutcome::NoRecord,
+        },
+    }
+}
+
+/// Analyses `session` with its own config (or `config`) and writes its report.json (atomically).
+pub fn analyze_one(session: &Path, config: Option<&crate::config::Config>) -> Result<(), String> {
+    let report = crate::experiment::analyze_session(session, config, &mut |_, _| {})
+        .map_err(|e| e.to_string())?;
+    crate::session::write_atomic(
+        &session.join("report.json"),
+        crate::experiment::report_json(&report).as_bytes(),
+    )
+    .map_err(|e| e.to_string())
+}
+
 /// Runs `job` on every item on `jobs` threads (the calling one among them) and returns the
 /// results in the items' order. `done` is called as each item finishes, on the thread that ran
 /// it but under a lock, with (item, its result, how many are done now): progress lines come

@@ -385,79 +385,44 @@ fn real_main(cli: Cli) -> Result<i32> {
     }
 }
 
-/// The sessions `paths` name, this shard of them, and the threads to run them on: each
-/// analysis on one thread, sessions side by side (a lone session gets every thread).
-fn batch_plan(
-    paths: &[PathBuf],
-    shard: Option<impactcam::batch::Shard>,
-    jobs: usize,
-) -> Result<(Vec<PathBuf>, usize)> {
-    let all = impactcam::batch::sessions(paths)?;
-    let mine = match shard {
-        Some(s) => s.select(&all),
-        None => all.clone(),
-    };
-    let jobs = match jobs {
-        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
-        n => n,
-    };
-    impactcam::analysis::set_threads(if mine.len() == 1 { jobs } else { 1 });
+/// Prints the shard's share when there is one.
+fn say_plan(plan: &impactcam::batch::Plan, shard: Option<impactcam::batch::Shard>) {
     if let Some(s) = shard {
         Status::new().line(&format!(
             "shard {}/{}: {} of {} sessions",
             s.index,
             s.count,
-            mine.len(),
-            all.len()
+            plan.sessions.len(),
+            plan.found
         ));
     }
-    Ok((mine, jobs))
 }
 
-/// `impactcam replay` of many sessions: each compared with its recorded report, a line per
-/// session as it finishes; exit 2 if any differs, 1 if any could not be analysed.
+/// `impactcam replay` of many sessions: a line per session as it finishes; exit 2 if any
+/// differs, 1 if any could not be analysed.
 fn replay_batch(
     paths: &[PathBuf],
     shard: Option<impactcam::batch::Shard>,
     jobs: usize,
 ) -> Result<i32> {
-    #[derive(PartialEq)]
-    enum Outcome {
-        Identical,
-        Differs,
-        NoRecord,
-        Failed(String),
-    }
-    let (sessions, jobs) = batch_plan(paths, shard, jobs)?;
-    let total = sessions.len();
+    use impactcam::batch::ReplayOutcome;
+    let plan = impactcam::batch::plan(paths, shard, jobs)?;
+    say_plan(&plan, shard);
+    let total = plan.sessions.len();
     let outcomes = impactcam::batch::run(
-        &sessions,
-        jobs,
-        |s| match experiment::analyze_session(s, None, &mut |_, _| {}) {
-            Err(e) => Outcome::Failed(e.to_string()),
-            Ok(report) => match std::fs::read_to_string(s.join("report.json")) {
-                Ok(r) if r == experiment::report_json(&report) => Outcome::Identical,
-                Ok(_) => Outcome::Differs,
-                Err(_) => Outcome::NoRecord,
-            },
-        },
-        |s, o, k| {
-            let what = match o {
-                Outcome::Identical => "identical".to_string(),
-                Outcome::Differs => "DIFFERS from the recorded report.json".to_string(),
-                Outcome::NoRecord => "no report.json to compare with".to_string(),
-                Outcome::Failed(e) => format!("error: {e}"),
-            };
-            eprintln!("[{k}/{total}] {}: {what}", s.display());
-        },
+        &plan.sessions,
+        plan.jobs,
+        impactcam::batch::replay_one,
+        |s, o, k| eprintln!("[{k}/{total}] {}: {o}", s.display()),
     );
-    let count = |f: &dyn Fn(&Outcome) -> bool| outcomes.iter().filter(|o| f(o)).count();
-    let differ = count(&|o| *o == Outcome::Differs);
-    let failed = count(&|o| matches!(o, Outcome::Failed(_)));
+    let count = |f: &dyn Fn(&ReplayOutcome) -> bool| outcomes.iter().filter(|o| f(o)).count();
+    let differ = count(&|o| *o == ReplayOutcome::Differs);
+    let failed = count(&|o| matches!(o, ReplayOutcome::Failed(_)));
     println!(
-        "replayed {total} session(s) on {jobs} thread(s): {} identical, {differ} differ, {} without a recorded report, {failed} failed",
-        count(&|o| *o == Outcome::Identical),
-        count(&|o| *o == Outcome::NoRecord),
+        "replayed {total} session(s) on {} thread(s): {} identical, {differ} differ, {} without a recorded report, {failed} failed",
+        plan.jobs,
+        count(&|o| *o == ReplayOutcome::Identical),
+        count(&|o| *o == ReplayOutcome::NoRecord),
     );
     Ok(if differ > 0 {
         2
@@ -468,8 +433,8 @@ fn replay_batch(
     })
 }
 
-/// `impactcam analyze` of many sessions: each analysed with its own config (or `config`) and
-/// its report.json written into it, a line per session as it finishes; exit 1 if any failed.
+/// `impactcam analyze` of many sessions: each one's report.json written into it, a line per
+/// session as it finishes; exit 1 if any failed.
 fn analyze_batch(
     paths: &[PathBuf],
     config: Option<&Path>,
@@ -478,28 +443,25 @@ fn analyze_batch(
     jobs: usize,
 ) -> Result<i32> {
     let given = config.map(Config::load).transpose()?;
-    let (sessions, jobs) = batch_plan(paths, shard, jobs)?;
+    let plan = impactcam::batch::plan(paths, shard, jobs)?;
     if given.is_some() && !overwrite {
-        if let Some(s) = sessions.iter().find(|s| s.join("report.json").exists()) {
+        if let Some(s) = plan
+            .sessions
+            .iter()
+            .find(|s| s.join("report.json").exists())
+        {
             bail!(
                 "{}: the session's recorded report.json would be replaced by one from another --config; give --overwrite to replace the recorded reports",
                 s.display()
             );
         }
     }
-    let total = sessions.len();
+    say_plan(&plan, shard);
+    let total = plan.sessions.len();
     let outcomes = impactcam::batch::run(
-        &sessions,
-        jobs,
-        |s| -> Result<(), String> {
-            let report = experiment::analyze_session(s, given.as_ref(), &mut |_, _| {})
-                .map_err(|e| e.to_string())?;
-            impactcam::session::write_atomic(
-                &s.join("report.json"),
-                experiment::report_json(&report).as_bytes(),
-            )
-            .map_err(|e| e.to_string())
-        },
+        &plan.sessions,
+        plan.jobs,
+        |s| impactcam::batch::analyze_one(s, given.as_ref()),
         |s, o, k| match o {
             Ok(()) => eprintln!("[{k}/{total}] {}: report.json written", s.display()),
             Err(e) => eprintln!("[{k}/{total}] {}: error: {e}", s.display()),
@@ -507,7 +469,8 @@ fn analyze_batch(
     );
     let failed = outcomes.iter().filter(|o| o.is_err()).count();
     println!(
-        "analysed {total} session(s) on {jobs} thread(s): {} report(s) written, {failed} failed",
+        "analysed {total} session(s) on {} thread(s): {} report(s) written, {failed} failed",
+        plan.jobs,
         total - failed
     );
     Ok(if failed > 0 { 1 } else { 0 })

@@ -213,7 +213,10 @@ fn clicking_run_in_a_browser_shows_the_result() {
     std::thread::sleep(Duration::from_millis(400));
     let second = wait_for(&mut eval, live_hash, 10);
     assert_ne!(first, second, "the live image changes over time");
-    assert!(eval("document.getElementById('live-info').textContent").as_str().unwrap_or("").contains("% saturated"));
+    assert!(eval("document.getElementById('live-info').textContent")
+        .as_str()
+        .unwrap_or("")
+        .contains("% saturated"));
 
     eval("document.getElementById('notes').value = 'from the browser'; document.getElementById('run').click(); true");
     let e_text = wait_for(
