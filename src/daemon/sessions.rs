@@ -124,8 +124,9 @@ pub(super) async fn report(State(state): State<Shared>, Path(name): Path<String>
 
 /// `GET /api/sessions/{name}/frames/{k}.png[?overlay=1]`: frame k (0-based, in recording order)
 /// as a PNG; with the overlay, the views' regions (yellow; magenta where the frame has a view
-/// not measured, with the reasons in the report's `quality.unmeasured`), the measured circles
-/// and centres (a blue, b red), the markers found (green), and a red border on the impact frame.
+/// not measured, with the reasons in the report's `quality.unmeasured`), the fitted
+/// trajectories (light blue and light red), the measured circles and centres (a blue, b red),
+/// the markers found (green), and a red border on the impact frame.
 pub(super) async fn frame(
     State(state): State<Shared>,
     Path((name, file)): Path<(String, String)>,
@@ -217,6 +218,59 @@ fn draw_overlay(r: &mut Raster, cfg: &crate::config::Config, report: Option<&Rep
         r.line((x0, y1), (x0, y0), c, 0.5);
     }
     let Some(rep) = report else { return };
+    // The fitted trajectories, through the pre-impact fit's centre at the impact, over the
+    // frames where the sphere was tracked: before the impact with the velocity before, after it
+    // with the velocity after.
+    let g = cfg.analysis.gravity_mm_s2;
+    let t_c = rep.impact.time_s.value;
+    for (s, colour) in [
+        (&rep.spheres.a, [120u8, 170, 230]),
+        (&rep.spheres.b, [240, 130, 130]),
+    ] {
+        let Some(p_c) = s.position_impact_mm.as_ref() else {
+            continue;
+        };
+        let at = |t: f64| {
+            let v = if t < t_c {
+                s.velocity_pre_mm_s.value
+            } else {
+                s.velocity_post_mm_s.value
+            };
+            let dt = t - t_c;
+            nalgebra::Vector3::new(
+                p_c.value[0] + v[0] * dt,
+                p_c.value[1] + v[1] * dt - 0.5 * g * dt * dt,
+                p_c.value[2] + v[2] * dt,
+            )
+        };
+        let sphere_is = |t: &crate::analysis::report::TrackFrame| {
+            if std::ptr::eq(s, &rep.spheres.a) {
+                t.a.is_some()
+            } else {
+                t.b.is_some()
+            }
+        };
+        let times: Vec<f64> = rep
+            .tracks
+            .iter()
+            .filter(|t| sphere_is(t))
+            .map(|t| t.time_s)
+            .collect();
+        for v in &views {
+            let pts: Vec<[f64; 2]> = times.iter().map(|&t| v.project(&at(t))).collect();
+            for w in pts
+                .windows(2)
+                .filter(|w| w.iter().all(|p| v.contains(p[0], p[1])))
+            {
+                r.line(
+                    (w[0][0] + 0.5, w[0][1] + 0.5),
+                    (w[1][0] + 0.5, w[1][1] + 0.5),
+                    colour,
+                    0.3,
+                );
+            }
+        }
+    }
     for t in rep.tracks.iter().filter(|t| t.frame as usize == k) {
         for (track, colour) in [(&t.a, [31u8, 119, 180]), (&t.b, [214, 39, 40])] {
             for v in track.iter().flat_map(|s| [&s.direct, &s.mirror]).flatten() {
