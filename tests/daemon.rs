@@ -683,6 +683,11 @@ fn live_view_shows_the_camera_while_idle_and_pauses_while_recording() {
     let (_, b) = d.get_bytes("/api/camera/frame.png?overlay=1");
     assert!(b.starts_with(b"\x89PNG"));
     assert_ne!(a, b, "a later frame, drawn on");
+    // Without the drawing too: the camera is grabbed again, not a cached frame served.
+    std::thread::sleep(Duration::from_millis(150));
+    let (_, c) = d.get_bytes("/api/camera/frame.png");
+    assert!(c.starts_with(b"\x89PNG"));
+    assert_ne!(a, c, "a later raw frame differs (the sensor's noise)");
     let overlay = d.json("/api/camera/overlay.json");
     let views = overlay["measured"].as_array().unwrap();
     assert_eq!(views.len(), 2, "{overlay}");

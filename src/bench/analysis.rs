@@ -12,11 +12,8 @@ use crate::analysis::image::GreyImage;
 use crate::analysis::source;
 use crate::analysis::stages::{self, Stage, StageTimes, STAGES};
 use crate::config::Config;
-use crate::experiment::Rig;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 
 /// CPU time this thread has used, s (the kernel's per-thread clock: a noisy neighbour on the
 /// machine does not count, time waiting for the disk does not either).
@@ -34,8 +31,9 @@ fn thread_cpu_s() -> f64 {
     ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
-/// One input's figures: frames, and seconds for decoding, the centroid baseline, the whole
-/// analysis and its stages.
+/// One input's figures (or a group's sums): frames, and seconds for decoding, the centroid
+/// baseline, the whole analysis and its stages.
+#[derive(Default)]
 struct Timing {
     frames: usize,
     decode_s: f64,
@@ -220,25 +218,13 @@ fn record(seed: u64, dir: &Path) -> Result<(PathBuf, Config), String> {
     cfg.recording.dir = dir.to_path_buf();
     cfg.sim.seed = seed;
     cfg.sim.look_family = Some("varied".into());
-    let rec = Rig::open(&cfg)
-        .map_err(|e| e.to_string())
-        .and_then(|mut rig| {
-            rig.record(&cfg, Arc::new(AtomicBool::new(false)), &mut |_| {})
-                .map_err(|e| e.to_string())
-        })
-        .map_err(|e| format!("recording: {e}"))?;
-    Ok((rec.session_dir, cfg))
+    Ok((super::record_sim(&cfg)?, cfg))
 }
 
 /// Sums of a group of inputs, printed as one block.
 #[derive(Default)]
 struct Group {
-    frames: usize,
-    decode_s: f64,
-    centroid_s: f64,
-    analysis_s: f64,
-    stages: StageTimes,
-    opencv_s: Option<f64>,
+    sum: Timing,
     failed: Vec<String>,
     inputs: usize,
 }
@@ -248,16 +234,17 @@ impl Group {
         match t {
             Ok(t) => {
                 self.inputs += 1;
-                self.frames += t.frames;
-                self.decode_s += t.decode_s;
-                self.centroid_s += t.centroid_s;
-                self.analysis_s += t.analysis_s;
+                let sum = &mut self.sum;
+                sum.frames += t.frames;
+                sum.decode_s += t.decode_s;
+                sum.centroid_s += t.centroid_s;
+                sum.analysis_s += t.analysis_s;
                 if let Some(o) = t.opencv_s {
-                    *self.opencv_s.get_or_insert(0.0) += o;
+                    *sum.opencv_s.get_or_insert(0.0) += o;
                 }
                 for p in 0..2 {
                     for s in 0..STAGES {
-                        self.stages[p][s] += t.stages[p][s];
+                        sum.stages[p][s] += t.stages[p][s];
                     }
                 }
             }
@@ -269,19 +256,20 @@ impl Group {
         if self.inputs == 0 && self.failed.is_empty() {
             return;
         }
+        let sum = &self.sum;
         let _ = writeln!(
             out,
             "\n{title}: {} inputs, {} frames",
-            self.inputs, self.frames
+            self.inputs, sum.frames
         );
         for e in &self.failed {
             let _ = writeln!(out, "  not timed (no result): {e}");
         }
-        if self.frames == 0 {
+        if sum.frames == 0 {
             return;
         }
-        let per = |s: f64| 1e3 * s / self.frames as f64;
-        let (dec, cen) = (per(self.decode_s), per(self.centroid_s));
+        let per = |s: f64| 1e3 * s / sum.frames as f64;
+        let (dec, cen) = (per(sum.decode_s), per(sum.centroid_s));
         let _ = writeln!(
             out,
             "  {:<44} {:>12} {:>10} {:>11}",
@@ -297,11 +285,11 @@ impl Group {
         };
         row("read and decode the frames (baseline)", dec);
         row("threshold + moments centroid (baseline)", cen);
-        if let Some(o) = self.opencv_s {
+        if let Some(o) = sum.opencv_s {
             row("OpenCV HoughCircles (baseline, --opencv)", per(o));
         }
-        row("whole analysis", per(self.analysis_s));
-        let st = |p: usize, s: Stage| self.stages[p][s as usize];
+        row("whole analysis", per(sum.analysis_s));
+        let st = |p: usize, s: Stage| sum.stages[p][s as usize];
         let inner = |p: usize| {
             st(p, Stage::Read)
                 + st(p, Stage::Detect)
@@ -339,13 +327,13 @@ impl Group {
             + st(1, Stage::Fits);
         row(
             "  not in a stage (setup, dot masks)",
-            per(self.analysis_s - accounted),
+            per(sum.analysis_s - accounted),
         );
-        if let Some(o) = self.opencv_s {
+        if let Some(o) = sum.opencv_s {
             let _ = writeln!(
                 out,
                 "  whole analysis / OpenCV HoughCircles: {:.1}× (the goal is about 2.5×)",
-                self.analysis_s / o.max(1e-12)
+                sum.analysis_s / o.max(1e-12)
             );
         }
     }

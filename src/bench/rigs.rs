@@ -8,13 +8,10 @@
 use crate::analysis::source::SessionSource;
 use crate::analysis::{self, report::Report};
 use crate::config::{Config, Geometry, ViewGeometry};
-use crate::experiment::Rig;
 use crate::session::SessionReader;
 use serde_json::Value;
 use std::fmt::Write;
 use std::path::Path;
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 
 /// One rig and what each way of analysing it gave: (Δe, Δψ1, Δψ2) with σ, or why not.
 struct RigResult {
@@ -99,14 +96,7 @@ fn run_rig(seed: u64, dir: &Path) -> Result<RigResult, String> {
     cfg.sim.camera_roll_deg = roll;
     cfg.sim.mirror_tilt_deg = tilt;
     cfg.sim.perspective_distance_mm = distance;
-    let rec = Rig::open(&cfg)
-        .map_err(|e| e.to_string())
-        .and_then(|mut rig| {
-            rig.record(&cfg, Arc::new(AtomicBool::new(false)), &mut |_| {})
-                .map_err(|e| e.to_string())
-        })
-        .map_err(|e| format!("recording: {e}"))?;
-    let session = rec.session_dir;
+    let session = super::record_sim(&cfg)?;
     let result = (|| {
         let truth: Value = std::fs::read_to_string(session.join("truth.json"))
             .map_err(|e| e.to_string())

@@ -88,12 +88,12 @@ fn current(state: &AppState) -> Result<Arc<LiveFrame>, (StatusCode, String)> {
     let raw_png = r.png().map_err(|e| internal(e.to_string()))?;
     for v in &views {
         let [x, y, w, h] = v.region.map(f64::from);
-        let c = [230, 200, 40];
-        let (x0, y0, x1, y1) = (x + 0.5, y + 0.5, x + w - 0.5, y + h - 0.5);
-        r.line((x0, y0), (x1, y0), c, 0.5);
-        r.line((x1, y0), (x1, y1), c, 0.5);
-        r.line((x1, y1), (x0, y1), c, 0.5);
-        r.line((x0, y1), (x0, y0), c, 0.5);
+        r.rect(
+            (x + 0.5, y + 0.5),
+            (x + w - 0.5, y + h - 0.5),
+            [230, 200, 40],
+            0.5,
+        );
     }
     for (c, radius) in circles {
         r.circle((c[0] + 0.5, c[1] + 0.5), radius, [44, 160, 44], false);

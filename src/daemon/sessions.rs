@@ -163,6 +163,23 @@ fn draw_frame(
     k: usize,
     overlay: bool,
 ) -> Result<Vec<u8>, (StatusCode, String)> {
+    let (mut r, cfg) = frame_raster(dir, k)?;
+    if overlay {
+        let report: Option<Report> = std::fs::read_to_string(dir.join("report.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str(&t).ok());
+        draw_overlay(&mut r, &cfg, report.as_ref(), k);
+    }
+    r.png()
+        .map_err(|e| (StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))
+}
+
+/// Frame `k` of the session in `dir` as a raster to draw on, and the session's config; 404
+/// for a frame it does not have.
+pub(super) fn frame_raster(
+    dir: &std::path::Path,
+    k: usize,
+) -> Result<(Raster, crate::config::Config), (StatusCode, String)> {
     let internal = |e: String| (StatusCode::INTERNAL_SERVER_ERROR, e);
     let mut reader =
         crate::session::SessionReader::open(dir).map_err(|e| internal(e.to_string()))?;
@@ -187,14 +204,10 @@ fn draw_frame(
         reader.height as usize,
         reader.bytes_per_pixel,
     );
-    let mut r = Raster::from_grey(img.width, img.height, &img.data);
-    if overlay {
-        let report: Option<Report> = std::fs::read_to_string(dir.join("report.json"))
-            .ok()
-            .and_then(|t| serde_json::from_str(&t).ok());
-        draw_overlay(&mut r, reader.config(), report.as_ref(), k);
-    }
-    r.png().map_err(|e| internal(e.to_string()))
+    Ok((
+        Raster::from_grey(img.width, img.height, &img.data),
+        reader.config().clone(),
+    ))
 }
 
 fn draw_overlay(r: &mut Raster, cfg: &crate::config::Config, report: Option<&Report>, k: usize) {
@@ -210,12 +223,7 @@ fn draw_overlay(r: &mut Raster, cfg: &crate::config::Config, report: Option<&Rep
         });
         let [x, y, w, h] = v.region.map(f64::from);
         let c = if not_measured { MAGENTA } else { YELLOW };
-        let (x1, y1) = (x + w - 0.5, y + h - 0.5);
-        let (x0, y0) = (x + 0.5, y + 0.5);
-        r.line((x0, y0), (x1, y0), c, 0.5);
-        r.line((x1, y0), (x1, y1), c, 0.5);
-        r.line((x1, y1), (x0, y1), c, 0.5);
-        r.line((x0, y1), (x0, y0), c, 0.5);
+        r.rect((x + 0.5, y + 0.5), (x + w - 0.5, y + h - 0.5), c, 0.5);
     }
     let Some(rep) = report else { return };
     // The fitted trajectories, through the pre-impact fit's centre at the impact, over the
@@ -289,9 +297,6 @@ fn draw_overlay(r: &mut Raster, cfg: &crate::config::Config, report: Option<&Rep
     if rep.impact.frame as usize == k {
         let (w, h) = (r.width() as f64, r.height() as f64);
         let red = [214, 39, 40];
-        r.line((0.5, 0.5), (w - 0.5, 0.5), red, 1.0);
-        r.line((w - 0.5, 0.5), (w - 0.5, h - 0.5), red, 1.0);
-        r.line((w - 0.5, h - 0.5), (0.5, h - 0.5), red, 1.0);
-        r.line((0.5, h - 0.5), (0.5, 0.5), red, 1.0);
+        r.rect((0.5, 0.5), (w - 0.5, h - 0.5), red, 1.0);
     }
 }

@@ -137,21 +137,11 @@ pub(super) async fn impact_frame(State(state): State<Shared>, Path(id): Path<Str
     };
     let dir = state.cfg.recording.dir.join(session);
     let png = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
-        use crate::figures::canvas::{Canvas, Raster};
+        use crate::figures::canvas::Canvas;
         let report: crate::analysis::report::Report =
             serde_json::from_value(report).map_err(|e| e.to_string())?;
-        let mut reader = crate::session::SessionReader::open(&dir).map_err(|e| e.to_string())?;
         let k = report.impact.frame as usize;
-        let mut raw = Vec::new();
-        reader.read_frame(k, &mut raw).map_err(|e| e.to_string())?;
-        let mut img = crate::analysis::image::GreyImage::new();
-        img.load(
-            &raw,
-            reader.width as usize,
-            reader.height as usize,
-            reader.bytes_per_pixel,
-        );
-        let mut r = Raster::from_grey(img.width, img.height, &img.data);
+        let (mut r, _) = super::sessions::frame_raster(&dir, k).map_err(|(_, e)| e)?;
         // Circles from the frames around the impact, so both spheres show even when merged.
         for t in report
             .tracks

@@ -17,6 +17,13 @@ pub trait Canvas {
     fn line(&mut self, a: (f64, f64), b: (f64, f64), colour: Rgb, width: f64);
     fn circle(&mut self, c: (f64, f64), r: f64, colour: Rgb, filled: bool);
     fn text(&mut self, at: (f64, f64), text: &str, anchor: Anchor, colour: Rgb);
+    /// The outline of the rectangle from `a` to `b`.
+    fn rect(&mut self, a: (f64, f64), b: (f64, f64), colour: Rgb, width: f64) {
+        self.line(a, (b.0, a.1), colour, width);
+        self.line((b.0, a.1), b, colour, width);
+        self.line(b, (a.0, b.1), colour, width);
+        self.line((a.0, b.1), a, colour, width);
+    }
 }
 
 pub struct Svg {
