@@ -217,8 +217,14 @@ fn clicking_run_in_a_browser_shows_the_result() {
         .as_str()
         .unwrap_or("")
         .contains("% saturated"));
+    // The mirror's x agreement is read out too (the simulator's spheres wait above the views
+    // before release, so it says why there is nothing to compare).
+    assert!(eval("document.getElementById('live-info').textContent")
+        .as_str()
+        .unwrap_or("")
+        .contains("mirror x agreement: "));
 
-    eval("document.getElementById('notes').value = 'from the browser'; document.getElementById('run').click(); true");
+    eval("document.getElementById('notes').value = 'from the browser'; document.getElementById('campaign').value = 'glass beads'; document.getElementById('tube').value = '30'; document.getElementById('run').click(); true");
     let e_text = wait_for(
         &mut eval,
         "document.getElementById('result').hidden ? '' : document.getElementById('e').textContent",
@@ -280,5 +286,30 @@ fn clicking_run_in_a_browser_shows_the_result() {
     wait_for(&mut eval, "document.getElementById('v-frame').complete && document.getElementById('v-frame').naturalWidth > 0", 10);
     eval("document.getElementById('viewer').scrollIntoView(); true");
     let shot = cdp.screenshot("session-viewer.png");
+    eprintln!("screenshot: {}", shot.display());
+
+    // Campaigns: after one experiment the campaign is listed with its one row; a second one at
+    // another tube angle joins it, and the table, the fit and the ψ plot follow.
+    let mut eval = |expr: &str| cdp.eval(expr);
+    wait_for(&mut eval, "document.getElementById('c-select').value === 'glass beads' && document.querySelectorAll('#c-table tr.row').length === 1", 10);
+    eval("document.getElementById('notes').value = 'second'; document.getElementById('tube').value = '40'; document.getElementById('run').click(); true");
+    wait_for(&mut eval, "document.querySelectorAll('#c-table tr.row').length === 2 && document.getElementById('c-plot').complete && document.getElementById('c-plot').naturalWidth > 0 && document.getElementById('c-plot').src.includes('n=2')", 60);
+    let table = eval("document.getElementById('c-table').textContent");
+    let table = table.as_str().unwrap_or("");
+    assert!(
+        table.contains("from the browser") && table.contains("second") && table.contains("40"),
+        "the campaign table has both experiments, their notes and tube angles: {table}"
+    );
+    let fit_e = eval("document.getElementById('c-e').textContent");
+    assert!(
+        fit_e.as_str().unwrap_or("").contains(" ± "),
+        "the campaign's e is fitted with its uncertainty: {fit_e}"
+    );
+    assert_eq!(
+        eval("document.getElementById('c-csv').hidden"),
+        serde_json::Value::Bool(false)
+    );
+    eval("document.getElementById('c-panel').scrollIntoView(); true");
+    let shot = cdp.screenshot("campaign.png");
     eprintln!("screenshot: {}", shot.display());
 }

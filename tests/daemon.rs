@@ -747,3 +747,83 @@ fn live_view_shows_the_camera_while_idle_and_pauses_while_recording() {
     let (code, _) = d.get_bytes("/api/camera/frame.png");
     assert_eq!(code, 200, "live again once it is done");
 }
+
+/// Campaigns: experiments labelled with a campaign (and their tube angle and notes, kept in the
+/// manifest) are grouped, fitted as `impactcam fit` fits them, plotted and tabled.
+#[test]
+fn experiments_grouped_by_campaign_are_fitted_plotted_and_tabled() {
+    let d = Daemon::start(None, "");
+    assert_eq!(d.json("/api/campaigns")["campaigns"], serde_json::json!([]));
+    let mut sessions = Vec::new();
+    for (angle, notes) in [(30.0, "first"), (40.0, "second")] {
+        let id = d.start_experiment(&format!(
+            r#"{{"campaign": "glass beads", "tube_angle_deg": {angle}, "notes": "{notes}"}}"#
+        ));
+        let done = d.wait_done(&id);
+        assert_eq!(done["status"], "done", "{done}");
+        sessions.push(done["session"].as_str().unwrap().to_string());
+    }
+    // One more outside the campaign: not in its fit.
+    let id = d.start_experiment("{}");
+    assert_eq!(d.wait_done(&id)["status"], "done");
+
+    let manifest = d.json(&format!("/api/sessions/{}", sessions[1]))["manifest"].clone();
+    assert_eq!(
+        manifest["config"]["experiment"],
+        serde_json::json!({"campaign": "glass beads", "tube_angle_deg": 40.0, "notes": "second"}),
+        "the label is stored in the manifest"
+    );
+    assert_eq!(
+        d.json("/api/campaigns")["campaigns"],
+        serde_json::json!([{"name": "glass beads", "sessions": 2}])
+    );
+    let c = d.json("/api/campaigns/glass%20beads");
+    let rows = c["fit"]["collisions"].as_array().unwrap();
+    let sources: Vec<&str> = rows.iter().map(|r| r["source"].as_str().unwrap()).collect();
+    assert_eq!(sources, [sessions[0].as_str(), sessions[1].as_str()]);
+    let angles: Vec<f64> = rows
+        .iter()
+        .map(|r| r["tube_angle_deg"].as_f64().unwrap())
+        .collect();
+    assert_eq!(angles, [30.0, 40.0]);
+    assert_eq!(c["notes"][&sessions[0]], "first");
+    // The same computation as `impactcam fit` over the same two sessions.
+    let paths: Vec<String> = sessions.iter().map(|s| format!("sessions/{s}")).collect();
+    let mut args = vec!["fit", "--json"];
+    args.extend(paths.iter().map(String::as_str));
+    let cli = common::run_json(d.dir(), &args);
+    assert_eq!(c["fit"]["e"], cli["e"], "page and `fit` agree on e");
+    assert!(c["fit"]["e"]["value"].as_f64().is_some(), "{c}");
+
+    let (code, svg) = d.get_bytes("/api/campaigns/glass%20beads/psi.svg");
+    assert_eq!(code, 200);
+    let svg = String::from_utf8_lossy(&svg);
+    assert!(
+        svg.starts_with("<svg") || svg.starts_with("<?xml"),
+        "{svg:.80}"
+    );
+    let (code, csv) = d.get_bytes("/api/campaigns/glass%20beads/collisions.csv");
+    assert_eq!(code, 200);
+    let csv = String::from_utf8_lossy(&csv);
+    assert_eq!(csv.lines().count(), 3, "header and two rows: {csv}");
+    assert!(
+        csv.lines()
+            .nth(2)
+            .unwrap()
+            .starts_with(&format!("{},40,", sessions[1])),
+        "{csv}"
+    );
+
+    for (path, want, says) in [
+        ("/api/campaigns/..%2Fx", 400, "not a campaign name"),
+        ("/api/campaigns/%20lead", 400, "not a campaign name"),
+        ("/api/campaigns/nosuch/psi.svg", 404, "no session"),
+    ] {
+        let (code, body) = d.request("GET", path, "", None);
+        assert_eq!(code, want, "{path}: {body}");
+        assert!(body.contains(says), "{path}: {body}");
+    }
+    let (code, body) = d.request("POST", "/api/experiments", r#"{"campaign": "a/b"}"#, None);
+    assert_eq!(code, 400, "{body}");
+    assert!(body.contains("experiment.campaign"), "{body}");
+}

@@ -50,9 +50,12 @@ fn collision_from(report: Report, source: String, cfg: Option<&Config>) -> Optio
     let e = report.e.clone()?;
     Some(Collision {
         source,
-        tube_angle_deg: cfg
-            .filter(|c| c.camera.backend == CameraBackend::Sim)
-            .map(|c| c.sim.tube_angle_deg),
+        // The angle the lab wrote down, else the simulator's own.
+        tube_angle_deg: cfg.and_then(|c| {
+            c.experiment
+                .tube_angle_deg
+                .or((c.camera.backend == CameraBackend::Sim).then_some(c.sim.tube_angle_deg))
+        }),
         e: e.value,
         e_sigma: e.uncertainty,
         psi1: report.psi1.as_ref().map(|x| x.value),
@@ -123,7 +126,8 @@ fn check_report_numbers(r: &Report) -> Result<(), String> {
 pub fn load(paths: &[PathBuf], skipped: &mut Vec<String>) -> Result<Vec<Collision>, CampaignError> {
     let mut out = Vec::new();
     let mut materials: Vec<(String, PathBuf)> = Vec::new();
-    let mut queue: Vec<PathBuf> = paths.to_vec();
+    // A stack: reversed so that the collisions come out in the order given.
+    let mut queue: Vec<PathBuf> = paths.iter().rev().cloned().collect();
     while let Some(p) = queue.pop() {
         if p.is_dir() && p.join("sessions").is_dir() {
             let mut inner: Vec<PathBuf> = std::fs::read_dir(p.join("sessions"))
@@ -168,6 +172,43 @@ pub fn load(paths: &[PathBuf], skipped: &mut Vec<String>) -> Result<Vec<Collisio
         }
     }
     Ok(out)
+}
+
+/// The sessions directly under `dir` whose manifest puts them in `campaign`
+/// (`config.experiment.campaign`), in name order, at most `max`.
+pub fn sessions_in_campaign(dir: &Path, campaign: &str, max: usize) -> Vec<PathBuf> {
+    let mut found: Vec<PathBuf> = campaign_of_each(dir, max)
+        .into_iter()
+        .filter(|(_, c)| c == campaign)
+        .map(|(p, _)| p)
+        .collect();
+    found.sort();
+    found
+}
+
+/// (session directory, campaign name) for each session directly under `dir` that belongs to a
+/// campaign, at most `max` sessions looked at (newest names first).
+pub fn campaign_of_each(dir: &Path, max: usize) -> Vec<(PathBuf, String)> {
+    let mut sessions: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| crate::batch::is_session(p))
+                .collect()
+        })
+        .unwrap_or_default();
+    sessions.sort_unstable_by(|a, b| b.cmp(a));
+    sessions.truncate(max);
+    sessions
+        .into_iter()
+        .filter_map(|p| {
+            // Only the label is wanted: the manifest is read as JSON, not validated as a whole.
+            let text = std::fs::read_to_string(p.join("session.json")).ok()?;
+            let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+            let name = v["config"]["experiment"]["campaign"].as_str()?.to_string();
+            Some((p, name))
+        })
+        .collect()
 }
 
 /// The per-collision table as CSV (one row per experiment), quoted where a cell needs it (a
@@ -501,6 +542,7 @@ pub fn sweep(
         let mut c = cfg.clone();
         c.recording.dir = dir.join("sessions");
         c.sim.tube_angle_deg = entry.tube_angle_deg;
+        c.experiment.tube_angle_deg = Some(entry.tube_angle_deg);
         if let Some(o) = entry.impact_offset {
             c.sim.impact_offset = o;
         }

@@ -43,6 +43,47 @@ pub struct Config {
     pub daemon: DaemonConfig,
     #[serde(default)]
     pub sim: hw_sim::LabConfig,
+    /// What the lab writes down about this experiment (campaign, tube angle, notes). It is kept
+    /// with the config, so it is stored in the session's manifest (`config.experiment`) by
+    /// whatever runs the experiment: `run`, a sweep, or the daemon.
+    #[serde(default, skip_serializing_if = "ExperimentLabel::is_empty")]
+    pub experiment: ExperimentLabel,
+}
+
+/// The lab's label for one experiment; nothing in the analysis reads it.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ExperimentLabel {
+    /// Groups experiments on the page and in `fit`: 1–64 characters of `A-Z a-z 0-9 . _ -` and
+    /// spaces.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub campaign: Option<String>,
+    /// The tubes' angle as set on the rig (the simulator's angle is `sim.tube_angle_deg`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tube_angle_deg: Option<f64>,
+    /// Free text, at most 2000 characters.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub notes: Option<String>,
+}
+
+/// Longest `experiment.notes` accepted.
+pub const MAX_NOTES_CHARS: usize = 2000;
+
+impl ExperimentLabel {
+    pub fn is_empty(&self) -> bool {
+        self.campaign.is_none() && self.tube_angle_deg.is_none() && self.notes.is_none()
+    }
+}
+
+/// Whether `name` is a campaign name: 1–64 characters of `A-Z a-z 0-9 . _ -` and spaces, not
+/// starting with a space or a dot.
+pub fn is_campaign_name(name: &str) -> bool {
+    (1..=64).contains(&name.len())
+        && !name.starts_with([' ', '.'])
+        && !name.ends_with(' ')
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'-' | b' '))
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
@@ -613,5 +654,32 @@ mod tests {
         let t = "[geometry.mirror]\nregion=[0,96,240,96]\npx_per_mm=2.0\norigin_px=[120.0,140.0]\nu_axis=\"+x\"\nv_axis=\"-y\"\n";
         let e = Config::from_toml_str(t, "x.toml").unwrap_err().to_string();
         assert!(e.contains("geometry.mirror"), "{e}");
+    }
+
+    #[test]
+    fn the_experiment_label_round_trips_and_bad_ones_are_named() {
+        let t = "[experiment]\ncampaign = \"glass 3 mm\"\ntube_angle_deg = 32.5\nnotes = \"new tubes\"\n";
+        let c = Config::from_toml_str(t, "x.toml").unwrap();
+        assert_eq!(c.experiment.campaign.as_deref(), Some("glass 3 mm"));
+        assert_eq!(Config::from_toml_str(&c.to_toml(), "again").unwrap(), c);
+        // No label, no section: a config without one writes what it always wrote.
+        assert!(!Config::default_config().to_toml().contains("[experiment]"));
+        let long = format!(
+            "[experiment]\nnotes = \"{}\"\n",
+            "x".repeat(MAX_NOTES_CHARS + 1)
+        );
+        for (t, expect) in [
+            ("[experiment]\ncampaign = \"../x\"\n", "experiment.campaign"),
+            ("[experiment]\ncampaign = \"\"\n", "experiment.campaign"),
+            (
+                "[experiment]\ntube_angle_deg = 120.0\n",
+                "experiment.tube_angle_deg",
+            ),
+            (long.as_str(), "experiment.notes"),
+            ("[experiment]\nangle = 3.0\n", "unknown field"),
+        ] {
+            let e = Config::from_toml_str(t, "x.toml").unwrap_err().to_string();
+            assert!(e.contains(expect), "{t}: {e}");
+        }
     }
 }

@@ -179,6 +179,29 @@ impl Config {
             check_token(t).map_err(|e| format!("daemon.token: {e}"))?;
         }
         self.sim.validate()?;
+        let x = &self.experiment;
+        if let Some(name) = &x.campaign {
+            if !is_campaign_name(name) {
+                return Err(format!(
+                    "experiment.campaign: {name:?} is not allowed, expected 1 to 64 characters of A-Z a-z 0-9 . _ - and inner spaces"
+                ));
+            }
+        }
+        if let Some(a) = x.tube_angle_deg {
+            if !(a.is_finite() && a.abs() <= 90.0) {
+                return Err(format!(
+                    "experiment.tube_angle_deg: {a} is out of range, expected -90 to 90"
+                ));
+            }
+        }
+        if let Some(n) = &x.notes {
+            if n.chars().count() > MAX_NOTES_CHARS {
+                return Err(format!(
+                    "experiment.notes: {} characters, expected at most {MAX_NOTES_CHARS}",
+                    n.chars().count()
+                ));
+            }
+        }
         Ok(())
     }
 }

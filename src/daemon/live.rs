@@ -8,7 +8,7 @@
 use super::{error, lock, AppState, Shared};
 use crate::analysis::circle::refine;
 use crate::analysis::detect::{find_blobs, levels};
-use crate::analysis::geometry::{self, View};
+use crate::analysis::geometry::{self, View, ViewKind};
 use crate::analysis::image::GreyImage;
 use crate::figures::canvas::{Canvas, Raster};
 use axum::body::Body;
@@ -102,7 +102,7 @@ fn current(state: &AppState) -> Result<Arc<LiveFrame>, (StatusCode, String)> {
     let f = Arc::new(LiveFrame {
         raw_png,
         drawn_png,
-        overlay: json!({"frame_id": frame.frame_id, "timestamp_ns": frame.timestamp_ns, "width": info.width, "height": info.height, "measured": overlay}),
+        overlay: json!({"frame_id": frame.frame_id, "timestamp_ns": frame.timestamp_ns, "width": info.width, "height": info.height, "measured": overlay["views"], "mirror_x_agreement": overlay["mirror_x_agreement"]}),
     });
     *lock(&state.live.last) = Some((Instant::now(), f.clone()));
     Ok(f)
@@ -121,6 +121,8 @@ fn measure(
 ) -> (Value, Vec<([f64; 2], f64)>) {
     let mut out = Vec::new();
     let mut drawn = Vec::new();
+    // World x of each circle, per view: what the mirror's agreement compares.
+    let mut world_x: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
     for v in views {
         let lv = levels(img, v);
         let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * v.px_per_mm);
@@ -136,6 +138,8 @@ fn measure(
                 json!({"centre_px": f.centre, "radius_px": f.radius, "edge_width_px": width}),
             );
             drawn.push((f.centre, f.radius));
+            let slot = usize::from(v.kind == ViewKind::Mirror);
+            world_x[slot].push(v.solve(f.centre, None).x);
         }
         let [x0, y0, w, h] = v.region.map(|x| x as usize);
         let mut hist = [0u64; 16];
@@ -157,7 +161,51 @@ fn measure(
             "exposure": {"histogram_16_bins": hist, "saturated_percent": pct(saturated), "black_percent": pct(black), "background_grey": lv.background, "peak_grey": lv.peak},
         }));
     }
-    (json!(out), drawn)
+    let direct_px_per_mm = views
+        .iter()
+        .find(|v| v.kind == ViewKind::Direct)
+        .map(|v| v.px_per_mm);
+    let agreement = mirror_x_agreement(&world_x[0], &world_x[1], direct_px_per_mm);
+    (
+        json!({"views": out, "mirror_x_agreement": agreement}),
+        drawn,
+    )
+}
+
+/// The mirror's x agreement (the thesis's Table 4 check): both views see world x, so the same
+/// sphere must have the same x in each. With as many circles in the mirror as in the direct
+/// view (one or two), each pair in x order: both x, the mirror's minus the direct one in mm and
+/// in direct-view px. A rig set up well agrees within a fraction of a pixel; a mirror off its
+/// 45° or a wrong `[geometry]` shows here. Otherwise a reason why there is nothing to compare.
+fn mirror_x_agreement(direct: &[f64], mirror: &[f64], direct_px_per_mm: Option<f64>) -> Value {
+    if direct.is_empty() || direct.len() != mirror.len() || direct.len() > 2 {
+        return json!({
+            "pairs": [],
+            "why_none": format!(
+                "needs the same one or two spheres in both views; the direct view shows {}, the mirror {}",
+                direct.len(),
+                mirror.len()
+            ),
+        });
+    }
+    let sorted = |x: &[f64]| {
+        let mut x = x.to_vec();
+        x.sort_by(f64::total_cmp);
+        x
+    };
+    let pairs: Vec<Value> = sorted(direct)
+        .into_iter()
+        .zip(sorted(mirror))
+        .map(|(d, m)| {
+            json!({
+                "x_direct_mm": d,
+                "x_mirror_mm": m,
+                "difference_mm": m - d,
+                "difference_px": direct_px_per_mm.map(|s| (m - d) * s),
+            })
+        })
+        .collect();
+    json!({ "pairs": pairs, "why_none": null })
 }
 
 /// A sphere's edge width, px: how far apart the radial profile crosses 10 % and 90 % of the way
@@ -275,6 +323,81 @@ mod tests {
             })
             .collect();
         img
+    }
+
+    /// A frame with a bright disc of radius `r_px` at each image point.
+    fn discs(width: usize, height: usize, at: &[[f64; 2]], r_px: f64) -> GreyImage {
+        let mut img = GreyImage::new();
+        img.width = width;
+        img.height = height;
+        img.data = (0..width * height)
+            .map(|k| {
+                let (x, y) = ((k % width) as f64, (k / width) as f64);
+                let inside = at.iter().any(|c| (x - c[0]).hypot(y - c[1]) < r_px);
+                if inside {
+                    190.0
+                } else {
+                    25.0
+                }
+            })
+            .collect();
+        img
+    }
+
+    #[test]
+    fn the_mirror_x_agreement_shows_a_mirror_view_shifted_along_x() {
+        let cfg = crate::config::Config::default_config();
+        let views = geometry::views(&cfg);
+        let (direct, mirror) = (&views[0], &views[1]);
+        assert_eq!(
+            (direct.kind, mirror.kind),
+            (ViewKind::Direct, ViewKind::Mirror)
+        );
+        // Two spheres in both views; the mirror's images drawn 0.8 mm further along x, as a
+        // mirror view shifted by a misplaced mirror would show them.
+        let spheres = [
+            nalgebra::Vector3::new(-6.0, 0.0, 0.0),
+            nalgebra::Vector3::new(7.0, 2.0, 0.0),
+        ];
+        let shift = nalgebra::Vector3::new(0.8, 0.0, 0.0);
+        let mut at: Vec<[f64; 2]> = spheres.iter().map(|p| direct.project(p)).collect();
+        at.extend(spheres.iter().map(|p| mirror.project(&(p + shift))));
+        let r_px = cfg.spheres.sphere(0).0 / 2.0 * direct.px_per_mm;
+        let img = discs(
+            cfg.camera.width as usize,
+            cfg.camera.height as usize,
+            &at,
+            r_px,
+        );
+        let (overlay, circles) = measure(&img, &views, &cfg);
+        assert_eq!(circles.len(), 4, "{overlay}");
+        let pairs = overlay["mirror_x_agreement"]["pairs"].as_array().unwrap();
+        assert_eq!(pairs.len(), 2, "{overlay}");
+        for (pair, p) in pairs.iter().zip(&spheres) {
+            let d = pair["difference_mm"].as_f64().unwrap();
+            assert!((d - 0.8).abs() < 0.05, "{pair}");
+            let x = pair["x_direct_mm"].as_f64().unwrap();
+            assert!((x - p.x).abs() < 0.05, "{pair}");
+            let px = pair["difference_px"].as_f64().unwrap();
+            assert!((px - 0.8 * direct.px_per_mm).abs() < 0.1, "{pair}");
+        }
+        // One sphere in the direct view only: nothing to compare, and why.
+        let img = discs(
+            cfg.camera.width as usize,
+            cfg.camera.height as usize,
+            &at[..1],
+            r_px,
+        );
+        let (overlay, _) = measure(&img, &views, &cfg);
+        let a = &overlay["mirror_x_agreement"];
+        assert_eq!(a["pairs"], json!([]));
+        assert!(
+            a["why_none"]
+                .as_str()
+                .unwrap()
+                .contains("direct view shows 1, the mirror 0"),
+            "{a}"
+        );
     }
 
     #[test]

@@ -8,6 +8,7 @@
 //! answering) it is closed, and opened again before the next experiment. Experiments run on
 //! blocking threads through `experiment::run_on`; the daemon itself never drives a device.
 
+mod campaigns;
 pub mod guard;
 mod listen;
 mod live;
@@ -61,6 +62,8 @@ pub struct Overrides {
     pub tube_angle_deg: Option<f64>,
     /// recording.frames for this experiment.
     pub frames: Option<u32>,
+    /// The campaign the experiment belongs to (`experiment.campaign`).
+    pub campaign: Option<String>,
 }
 
 struct Record {
@@ -196,6 +199,10 @@ pub fn serve(
             .route("/api/sessions/{name}", get(sessions::one))
             .route("/api/sessions/{name}/report.json", get(sessions::report))
             .route("/api/sessions/{name}/frames/{file}", get(sessions::frame))
+            .route("/api/campaigns", get(campaigns::list))
+            .route("/api/campaigns/{name}", get(campaigns::one))
+            .route("/api/campaigns/{name}/psi.svg", get(campaigns::psi_svg))
+            .route("/api/campaigns/{name}/collisions.csv", get(campaigns::csv))
             .route("/api/login", post(login))
             .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
             .layer(axum::middleware::from_fn_with_state(state.clone(), refuse_forged))
@@ -518,6 +525,15 @@ pub fn experiment_config(body: &[u8], base: &Config) -> Result<(Config, Override
     }
     if let Some(a) = overrides.tube_angle_deg {
         cfg.sim.tube_angle_deg = a;
+        cfg.experiment.tube_angle_deg = Some(a);
+    }
+    // The label goes into the session's manifest with the config; empty fields are no label.
+    let nonblank = |s: &Option<String>| s.as_ref().filter(|s| !s.trim().is_empty()).cloned();
+    if let Some(n) = nonblank(&overrides.notes) {
+        cfg.experiment.notes = Some(n);
+    }
+    if let Some(c) = nonblank(&overrides.campaign) {
+        cfg.experiment.campaign = Some(c.trim().to_string());
     }
     cfg.validate()?;
     Ok((cfg, overrides))
