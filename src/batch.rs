@@ -24,6 +24,21 @@ pub fn is_session(dir: &Path) -> bool {
     dir.join("session.json").is_file()
 }
 
+/// Whether `dir` holds sessions (directly, or in its `sessions/` as a campaign does).
+pub fn holds_sessions(dir: &Path) -> bool {
+    let inner = dir.join("sessions");
+    let scan = if inner.is_dir() {
+        inner
+    } else {
+        dir.to_path_buf()
+    };
+    std::fs::read_dir(scan).is_ok_and(|entries| {
+        entries
+            .filter_map(|e| e.ok())
+            .any(|e| is_session(&e.path()))
+    })
+}
+
 /// The sessions `paths` name, sorted and each once: a session directory is itself; a campaign
 /// directory gives the sessions in its `sessions/`; any other directory, the sessions directly
 /// inside it (a sessions directory). A path that is none of these is an error naming it.

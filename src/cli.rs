@@ -153,13 +153,34 @@ pub(crate) enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
-    /// Export a session's frames as a multi-page TIFF (Fiji/ImageJ opens it).
+    /// Export a session's frames: a multi-page TIFF with ImageJ's frame interval (Fiji opens
+    /// it), Photron MRAW + CIH, or FMF.
     Export {
         /// The session directory whose frames are exported.
         session: PathBuf,
-        /// The multi-page TIFF to write (replaced whole, never left half-written).
+        /// The file to write (replaced whole, never left half-written); for mraw, OUT.mraw and
+        /// OUT.cih.
+        out: Option<PathBuf>,
+        /// tiff, mraw or fmf.
+        #[arg(long, value_enum)]
+        format: Option<ExportFormatArg>,
+        /// The same as `--format tiff OUT` (kept for existing scripts).
+        #[arg(long, conflicts_with_all = ["out", "format"])]
+        tiff: Option<PathBuf>,
+    },
+    /// Make a session of another camera's file (Photron .cih/.cihx + .mraw, Phantom .cine,
+    /// FMF, a TIFF stack, or numbered PNG/TIFF/BMP images), so that replay, the page and
+    /// campaigns use it like a recording.
+    Import {
+        /// The footage: a file, a directory of numbered images, or a pattern like frame_%05d.png.
+        file: PathBuf,
+        /// The new session directory.
         #[arg(long)]
-        tiff: PathBuf,
+        out: PathBuf,
+        /// The rig's config (geometry, spheres); the file's own frame size and rate are used.
+        /// Needed for footage that states no frame rate (images, TIFF, FMF without times).
+        #[arg(long)]
+        config: Option<PathBuf>,
     },
     /// What this machine offers: cameras (by built-in backend) and serial ports.
     Devices,
@@ -269,4 +290,12 @@ pub(crate) enum BenchWhat {
         #[arg(long, default_value = ".")]
         dir: PathBuf,
     },
+}
+
+/// `export --format`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ExportFormatArg {
+    Tiff,
+    Mraw,
+    Fmf,
 }

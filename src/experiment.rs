@@ -179,8 +179,10 @@ pub fn run_on(
     Ok((rec, report))
 }
 
-/// Analyses a session or a TIFF stack at `path` (`analysis::source::open`), with `cfg` when
-/// given, else the session's own recorded config.
+/// Analyses a session or footage recorded elsewhere at `path` (`analysis::source::open`), with
+/// `cfg` when given, else the session's own recorded config. For footage, `cfg` may be
+/// unvalidated (`Config::load_unchecked`): it is fitted to the file's frame size and, where the
+/// file states one, its frame rate, and validated against them.
 pub fn analyze_path(
     path: &Path,
     cfg: Option<&Config>,
@@ -188,7 +190,22 @@ pub fn analyze_path(
 ) -> Result<Report, ExperimentError> {
     let mut src = analysis::source::open(path, cfg.map(|c| c.camera.frame_rate_hz))?;
     let cfg = match cfg {
-        Some(c) => c.clone(),
+        Some(c) if src.recorded_config().is_none() => {
+            let (w, h) = src.dimensions();
+            let rate = src.source().frame_rate_hz;
+            c.for_footage(w, h, Some(rate))
+                .map_err(|message| AnalysisError::Input {
+                    source_name: path.display().to_string(),
+                    message: format!("the config does not suit this footage ({w}×{h} px at {rate} frames/s): {message}"),
+                })?
+        }
+        Some(c) => {
+            c.validate().map_err(|message| AnalysisError::Input {
+                source_name: path.display().to_string(),
+                message: format!("the config: {message}"),
+            })?;
+            c.clone()
+        }
         None => src
             .recorded_config()
             .cloned()

@@ -45,10 +45,49 @@ pub fn session(data: &[u8], dir: &Path) {
     }
 }
 
-/// A TIFF file, written to `path` and opened as a stack.
+/// A TIFF file, written to `path`, opened as a stack and every page read.
 pub fn tiff(data: &[u8], path: &Path) {
     if std::fs::write(path, data).is_ok() {
-        let _ = crate::session::tiff::TiffStack::open(path);
+        if let Ok(mut stack) = crate::footage::tiff_stack::TiffStack::open(path, Some(1000.0)) {
+            use crate::footage::FrameFile;
+            let mut buf = Vec::new();
+            for k in 0..stack.len() {
+                let _ = stack.read(k, &mut buf);
+            }
+        }
+    }
+}
+
+/// Another camera's file (`footage`): the first byte picks the format — 0 a Photron header and
+/// its frames (split at the first `\0\0\0`), 1 a cine, 2 an FMF, 3 a numbered image — the rest
+/// is written into `dir`, opened by content, and its first 64 frames read.
+pub fn footage(data: &[u8], dir: &Path) {
+    let Some((&kind, rest)) = data.split_first() else {
+        return;
+    };
+    let written = match kind % 4 {
+        0 => {
+            let at = rest.windows(3).position(|w| w == b"\0\0\0");
+            let (cih, mraw) = match at {
+                Some(i) => (&rest[..i], &rest[i + 3..]),
+                None => (rest, &[][..]),
+            };
+            std::fs::write(dir.join("in.cih"), cih)
+                .and_then(|_| std::fs::write(dir.join("in.mraw"), mraw))
+                .map(|_| dir.join("in.cih"))
+        }
+        1 => std::fs::write(dir.join("in.cine"), rest).map(|_| dir.join("in.cine")),
+        2 => std::fs::write(dir.join("in.fmf"), rest).map(|_| dir.join("in.fmf")),
+        // Named as an image; what it is, its content decides.
+        _ => std::fs::write(dir.join("f_0001.png"), rest).map(|_| dir.join("f_0001.png")),
+    };
+    let Ok(path) = written else { return };
+    if let Ok(mut f) = crate::footage::open(&path, Some(1000.0)) {
+        let mut buf = Vec::new();
+        for k in 0..f.len().min(64) {
+            let _ = f.meta(k);
+            let _ = f.read(k, &mut buf);
+        }
     }
 }
 

@@ -12,6 +12,7 @@ pub mod config;
 pub mod daemon;
 pub mod experiment;
 pub mod figures;
+pub mod footage;
 pub mod fuzzing;
 pub mod recorder;
 pub mod session;

@@ -224,9 +224,7 @@ fn real_main(cli: Cli) -> Result<i32> {
             let jobs = jobs.map_or(0, usize::from);
             let single = match paths.as_slice() {
                 [] => None,
-                [one]
-                    if shard.is_none() && (one.is_file() || impactcam::batch::is_session(one)) =>
-                {
+                [one] if shard.is_none() && impactcam::footage::is_one_input(one) => {
                     Some(one.clone())
                 }
                 _ => {
@@ -257,10 +255,49 @@ fn real_main(cli: Cli) -> Result<i32> {
             dir,
         } => sweep_command(config, tube_angles, impact_offsets, repeats, dir),
         Command::Fit { paths, json, out } => fit_command(paths, json, out),
-        Command::Export { session, tiff } => {
-            let mut reader = impactcam::session::SessionReader::open(&session)?;
-            let n = impactcam::session::tiff::export_session(&mut reader, &tiff)?;
-            println!("wrote {n} frames to {}", tiff.display());
+        Command::Export {
+            session,
+            out,
+            format,
+            tiff,
+        } => {
+            use impactcam::footage::import::ExportFormat;
+            let (format, out) = match (tiff, format, out) {
+                (Some(t), _, _) => (ExportFormat::Tiff, t),
+                (None, Some(f), Some(o)) => (
+                    match f {
+                        cli::ExportFormatArg::Tiff => ExportFormat::Tiff,
+                        cli::ExportFormatArg::Mraw => ExportFormat::Mraw,
+                        cli::ExportFormatArg::Fmf => ExportFormat::Fmf,
+                    },
+                    o,
+                ),
+                _ => bail!("give --format tiff|mraw|fmf and the file to write (or --tiff OUT.tif)"),
+            };
+            let n = impactcam::footage::import::export(&session, format, &out)?;
+            if format == ExportFormat::Mraw {
+                println!(
+                    "wrote {n} frames to {} and {}",
+                    out.with_extension("mraw").display(),
+                    out.with_extension("cih").display()
+                );
+            } else {
+                println!("wrote {n} frames to {}", out.display());
+            }
+            Ok(0)
+        }
+        Command::Import { file, out, config } => {
+            let cfg = config.as_deref().map(Config::load_unchecked).transpose()?;
+            let done = impactcam::footage::import::import(&file, &out, cfg.as_ref())?;
+            println!(
+                "imported {} frames ({}, {}×{} px, {} frames/s) into {}",
+                done.frames,
+                done.kind,
+                done.width,
+                done.height,
+                done.frame_rate_hz,
+                done.session.display()
+            );
             Ok(0)
         }
         Command::Devices => {
@@ -486,7 +523,15 @@ fn analyze_command(
     out: Option<PathBuf>,
     overwrite: bool,
 ) -> Result<i32> {
-    let given = config.as_deref().map(Config::load).transpose()?;
+    // Footage decides its own frame size and rate: the config is validated against them once
+    // the file is open (`experiment::analyze_path`); for --tracks, as it stands.
+    let given = config.as_deref().map(Config::load_unchecked).transpose()?;
+    if tracks.is_some() {
+        if let (Some(c), Some(p)) = (&given, &config) {
+            c.validate()
+                .map_err(|m| anyhow::anyhow!("{}: {m}", p.display()))?;
+        }
+    }
     let needs_config = || {
         anyhow::anyhow!("--config: missing, expected the config that describes this footage (a session uses its own; a TIFF stack or --tracks needs one)")
     };

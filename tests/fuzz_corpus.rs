@@ -59,3 +59,8 @@ fn tracks_corpus() {
 fn api_body_corpus() {
     replay("api_body", &|d, _| impactcam::fuzzing::api_body(d));
 }
+
+#[test]
+fn footage_corpus() {
+    replay("footage", &|d, w| impactcam::fuzzing::footage(d, w));
+}

@@ -264,6 +264,9 @@ mod tests {
                 frames: self.frames.len() as u64,
                 frame_rate_hz: 1000.0,
                 timestamps: "frame number".into(),
+                trigger_frame: None,
+                first_frame_number: None,
+                exposure_s: None,
             }
         }
         fn len(&self) -> usize {

@@ -43,7 +43,7 @@ use tracking::{DotMasks, FrameObs};
 use calibration::calibrate_mirror;
 use phases::{fit_all, flight_phases, phases_missing_axis, relift_on_trajectories};
 use second_pass::rim_dots;
-pub use source::{FrameSource, SessionSource, TiffSource};
+pub use source::{FileSource, FrameSource, SessionSource};
 use uncertainty::{combined_uncertainties, spin_estimate};
 
 #[derive(Debug, thiserror::Error)]

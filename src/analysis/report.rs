@@ -43,7 +43,7 @@ pub struct Software {
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Source {
-    /// "session" or "tiff".
+    /// "session", "tracks", or the file's format: "tiff", "mraw", "cine", "fmf", "sequence".
     pub kind: String,
     /// Session id or file name (not a path, so a moved session replays identically).
     pub name: String,
@@ -51,6 +51,17 @@ pub struct Source {
     pub frame_rate_hz: f64,
     /// Whether frame times come from device timestamps or from frame numbers / frame rate.
     pub timestamps: String,
+    /// Footage from another camera: the index (in the file) of its trigger frame, where the
+    /// file records one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trigger_frame: Option<i64>,
+    /// Footage from another camera: its number of the first frame, relative to the trigger
+    /// (negative before it), where the file records it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub first_frame_number: Option<i64>,
+    /// Footage from another camera: the exposure it records, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exposure_s: Option<f64>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -5,7 +5,7 @@ use super::image::GreyImage;
 use super::report::Source;
 use super::AnalysisError;
 use crate::config::Config;
-use crate::session::tiff::TiffStack;
+use crate::footage::{FrameFile, Timing};
 use crate::session::{FrameMeta, SessionReader};
 use std::path::Path;
 
@@ -50,6 +50,9 @@ impl FrameSource for SessionSource {
             frames: self.reader.frames.len() as u64,
             frame_rate_hz: self.reader.manifest.camera.frame_rate_hz,
             timestamps: "device".into(),
+            trigger_frame: None,
+            first_frame_number: None,
+            exposure_s: None,
         }
     }
     fn len(&self) -> usize {
@@ -102,76 +105,152 @@ impl FrameSource for SessionSource {
     }
 }
 
-pub struct TiffSource {
-    stack: TiffStack,
-    meta: Vec<FrameMeta>,
+/// Footage from another camera or program (`footage`): MRAW, CINE, FMF, image sequences, TIFF
+/// stacks, read a frame at a time.
+pub struct FileSource {
+    file: Box<dyn FrameFile>,
     frame_rate_hz: f64,
+    warnings: Vec<String>,
+    buf: Vec<u8>,
 }
 
-impl TiffSource {
-    pub fn new(stack: TiffStack, frame_rate_hz: f64) -> Self {
-        let meta = stack.meta(frame_rate_hz);
-        TiffSource {
-            stack,
-            meta,
+impl FileSource {
+    /// `frame_rate_hz`: the rate the analysis uses (the file's own where it has one, see
+    /// `rate_for`); `warnings`: what the report must say about the file.
+    pub fn new(file: Box<dyn FrameFile>, frame_rate_hz: f64, warnings: Vec<String>) -> Self {
+        FileSource {
+            file,
             frame_rate_hz,
+            warnings,
+            buf: Vec::new(),
         }
     }
 }
 
-impl FrameSource for TiffSource {
+impl FrameSource for FileSource {
     fn source(&self) -> Source {
+        let i = self.file.info();
         Source {
-            kind: "tiff".into(),
-            name: self
-                .stack
-                .path
-                .file_name()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default(),
-            frames: self.stack.frames.len() as u64,
+            kind: i.kind.into(),
+            name: i.name.clone(),
+            frames: self.file.len() as u64,
             frame_rate_hz: self.frame_rate_hz,
-            timestamps: "frame number / camera.frame_rate_hz".into(),
+            timestamps: match (i.timing, i.frame_rate_hz) {
+                (Timing::File, _) => format!("the {} file's own frame times", i.kind),
+                (Timing::Rate, Some(_)) => "frame number / the file's frame rate".into(),
+                (Timing::Rate, None) => "frame number / camera.frame_rate_hz".into(),
+            },
+            trigger_frame: i.trigger_frame,
+            first_frame_number: i.first_frame_number,
+            exposure_s: i.exposure_s,
         }
     }
     fn len(&self) -> usize {
-        self.stack.frames.len()
+        self.file.len()
     }
     fn meta(&self, i: usize) -> FrameMeta {
-        self.meta[i]
+        self.file.meta(i)
     }
     fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
+        self.file
+            .read(i, &mut self.buf)
+            .map_err(|e| AnalysisError::Input {
+                source_name: e.path.display().to_string(),
+                message: e.message,
+            })?;
+        let info = self.file.info();
         img.load(
-            &self.stack.frames[i],
-            self.stack.width as usize,
-            self.stack.height as usize,
-            self.stack.bytes_per_pixel,
+            &self.buf,
+            info.width as usize,
+            info.height as usize,
+            info.bytes_per_pixel,
         );
         Ok(())
     }
     fn frames_dropped(&self) -> u64 {
-        0
+        crate::session::count_gaps(
+            &(0..self.file.len())
+                .map(|k| self.file.meta(k))
+                .collect::<Vec<_>>(),
+        )
     }
     fn dimensions(&self) -> (u32, u32) {
-        (self.stack.width, self.stack.height)
+        let i = self.file.info();
+        (i.width, i.height)
     }
     fn warnings(&self) -> Vec<String> {
-        Vec::new()
+        self.warnings.clone()
     }
 }
 
-/// Opens `path` as frames: a session directory, or a multi-page TIFF stack whose frame k is at
-/// k / `frame_rate_hz` (which a stack needs: it carries no times).
+/// The frame rate to analyse a file at: its own where it states one, else the config's; and a
+/// warning when both are given and differ by more than 0.01 %.
+pub fn rate_for(file: &dyn FrameFile, config_rate_hz: f64) -> (f64, Option<String>) {
+    let i = file.info();
+    match i.frame_rate_hz {
+        Some(r) if (r - config_rate_hz).abs() > 1e-4 * r => (
+            r,
+            Some(format!(
+                "the {} file says {r} frames/s; camera.frame_rate_hz ({config_rate_hz}) is not used",
+                i.kind
+            )),
+        ),
+        // They agree: the config's number, so that footage whose header rounds the rate (an
+        // ImageJ interval) analyses exactly as footage that states none.
+        Some(_) => (config_rate_hz, None),
+        None => (config_rate_hz, None),
+    }
+}
+
+/// The frame rate the median interval between a file's frame ids and times gives, Hz.
+fn rate_from_times(file: &dyn FrameFile) -> Option<f64> {
+    let mut per_frame: Vec<f64> = (1..file.len())
+        .filter_map(|k| {
+            let (a, b) = (file.meta(k - 1), file.meta(k));
+            let frames = b.frame_id.checked_sub(a.frame_id).filter(|d| *d > 0)?;
+            Some(b.timestamp_ns.saturating_sub(a.timestamp_ns) as f64 / frames as f64)
+        })
+        .collect();
+    if per_frame.is_empty() {
+        return None;
+    }
+    per_frame.sort_by(f64::total_cmp);
+    let ns = per_frame[per_frame.len() / 2];
+    (ns > 0.0).then(|| 1e9 / ns)
+}
+
+/// Opens `path` as frames: a session directory, or footage recorded elsewhere (`footage::open`,
+/// by content), whose frame rate is its own where it states one, else `frame_rate_hz`.
 pub fn open(
     path: &Path,
     frame_rate_hz: Option<f64>,
 ) -> Result<Box<dyn FrameSource>, AnalysisError> {
-    if path.is_dir() {
+    if crate::batch::is_session(path) {
         return Ok(Box::new(SessionSource::new(SessionReader::open(path)?)));
     }
-    let rate = frame_rate_hz.ok_or_else(|| AnalysisError::Input {
-        source_name: path.display().to_string(),
-        message: "a TIFF stack carries no frame times: give a config (camera.frame_rate_hz)".into(),
+    let file = crate::footage::open(path, frame_rate_hz).map_err(|e| AnalysisError::Input {
+        source_name: e.path.display().to_string(),
+        message: e.message,
     })?;
-    Ok(Box::new(TiffSource::new(TiffStack::open(path)?, rate)))
+    let (rate, warning) = match (frame_rate_hz, file.info().frame_rate_hz) {
+        (Some(r), _) => rate_for(file.as_ref(), r),
+        (None, Some(r)) => (r, None),
+        // Only a file with its own frame times gets here without a rate (the others are refused
+        // by `footage::open`): the median interval between them.
+        (None, None) => match rate_from_times(file.as_ref()) {
+            Some(r) => (
+                r,
+                Some(format!("frame rate {r:.6} frames/s, from the median interval of the file's frame times")),
+            ),
+            None => {
+                return Err(AnalysisError::Input {
+                    source_name: path.display().to_string(),
+                    message: "the file states no frame rate: give a config with camera.frame_rate_hz".into(),
+                })
+            }
+        },
+    };
+    let mut warnings: Vec<String> = file.info().notes.clone();
+    warnings.extend(warning);
+    Ok(Box::new(FileSource::new(file, rate, warnings)))
 }

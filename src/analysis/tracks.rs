@@ -144,6 +144,9 @@ pub fn read(
         } else {
             "frame / camera.frame_rate_hz".into()
         },
+        trigger_frame: None,
+        first_frame_number: None,
+        exposure_s: None,
     };
     Ok((Input { info, warnings: vec!["centres were digitised elsewhere: their uncertainties and the sphere diameters are not known per frame".into()], frames_dropped: 0 }, obs))
 }

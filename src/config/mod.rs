@@ -486,11 +486,44 @@ impl Config {
         Config::from_toml_str(&text, &path.display().to_string())
     }
 
-    pub fn from_toml_str(text: &str, origin: &str) -> Result<Config, ConfigError> {
-        let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse {
+    /// A config file parsed but not yet validated: for footage recorded elsewhere, whose frame
+    /// size (and rate, where it states one) the file decides; `for_footage` then validates it.
+    pub fn load_unchecked(path: &Path) -> Result<Config, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|cause| ConfigError::Read {
+            path: path.into(),
+            cause,
+        })?;
+        Config::parse(&text, &path.display().to_string())
+    }
+
+    fn parse(text: &str, origin: &str) -> Result<Config, ConfigError> {
+        toml::from_str(text).map_err(|e| ConfigError::Parse {
             origin: origin.into(),
             message: e.message().to_string() + &span_hint(text, e.span()),
-        })?;
+        })
+    }
+
+    /// This config for footage of `width`×`height` frames (at `frame_rate_hz` where the file
+    /// states it): the camera's size and rate replaced by the file's, then validated, so the
+    /// regions are checked against the frames they will be read from.
+    pub fn for_footage(
+        &self,
+        width: u32,
+        height: u32,
+        frame_rate_hz: Option<f64>,
+    ) -> Result<Config, String> {
+        let mut c = self.clone();
+        c.camera.width = width;
+        c.camera.height = height;
+        if let Some(r) = frame_rate_hz {
+            c.camera.frame_rate_hz = r;
+        }
+        c.validate()?;
+        Ok(c)
+    }
+
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Config, ConfigError> {
+        let cfg = Config::parse(text, origin)?;
         cfg.validate().map_err(|message| ConfigError::Invalid {
             origin: origin.into(),
             message,

@@ -84,6 +84,11 @@ pub struct Manifest {
     pub frames_recorded: u64,
     pub frames_dropped: u64,
     pub config: Config,
+    /// A session made by `impactcam import` from another camera's file: the file's format and
+    /// name and its own metadata (header fields, trigger frame, exposure). Absent for a
+    /// recording.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub imported: Option<serde_json::Value>,
 }
 
 /// One index line: where a frame sits and what the device said about it.
@@ -169,6 +174,37 @@ impl SessionWriter {
         }
     }
 
+    /// Creates the session directory `dir` itself (which must not exist yet; its parent is
+    /// created), as `create` does under a parent.
+    pub fn create_at(
+        dir: &Path,
+        camera: &CameraInfo,
+        trigger: ManifestTrigger,
+        config: &Config,
+    ) -> Result<SessionWriter, SessionError> {
+        if let Some(parent) = dir.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|e| io_err(parent, e))?;
+        }
+        std::fs::create_dir(dir).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::AlreadyExists {
+                io_err(
+                    dir,
+                    "already exists, expected a new directory for the session",
+                )
+            } else {
+                io_err(dir, e)
+            }
+        })?;
+        let (_, iso) = utc_stamp();
+        match Self::fill(dir.to_path_buf(), iso, camera, trigger, config) {
+            Ok(w) => Ok(w),
+            Err(e) => {
+                let _ = std::fs::remove_dir_all(dir);
+                Err(e)
+            }
+        }
+    }
+
     fn fill(
         dir: PathBuf,
         iso: String,
@@ -222,6 +258,7 @@ impl SessionWriter {
             frames_recorded: 0,
             frames_dropped: 0,
             config: config.clone(),
+            imported: None,
         };
         let w = SessionWriter {
             dir,
