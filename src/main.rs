@@ -274,7 +274,11 @@ fn real_main(cli: Cli) -> Result<i32> {
                 ),
                 _ => bail!("give --format tiff|mraw|fmf and the file to write (or --tiff OUT.tif)"),
             };
-            let n = impactcam::footage::import::export(&session, format, &out)?;
+            let done = impactcam::footage::import::export(&session, format, &out)?;
+            let n = done.frames;
+            if let Some(c) = &done.caveat {
+                eprintln!("warning: {c}");
+            }
             if format == ExportFormat::Mraw {
                 println!(
                     "wrote {n} frames to {} and {}",

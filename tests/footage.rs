@@ -438,3 +438,48 @@ fn impactcam_default_config(dir: &Path) -> PathBuf {
     std::fs::write(&p, &o.stdout).unwrap();
     p
 }
+
+/// A session with a dropped frame: FMF keeps every frame's time (the gap stays a gap), and
+/// the formats without times say what they lose.
+#[test]
+fn exports_keep_or_warn_about_frame_times_across_a_drop() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::write(
+        dir.join("c.toml"),
+        "[recording]\nframes = 60\n[sim]\ndrop_frame_ids = [40]\n",
+    )
+    .unwrap();
+    let o = common::impactcam(dir, &["capture", "--config", "c.toml"]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let session = common::first_session(dir);
+    let s = session.to_str().unwrap();
+    let r = SessionReader::open(&session).unwrap();
+    let gap = r
+        .frames
+        .windows(2)
+        .position(|w| w[1].frame_id != w[0].frame_id + 1)
+        .unwrap();
+    let o = common::impactcam(dir, &["export", s, "--format", "fmf", "clip.fmf"]);
+    assert!(
+        o.status.success() && !common::stderr(&o).contains("warning"),
+        "{}",
+        common::stderr(&o)
+    );
+    let f = impactcam::footage::open(&dir.join("clip.fmf"), None).unwrap();
+    let t = |k: usize| f.meta(k).timestamp_ns;
+    assert_eq!(
+        t(gap + 1) - t(gap),
+        2 * (t(1) - t(0)),
+        "the dropped frame's time stays missing"
+    );
+    for format in ["mraw", "tiff"] {
+        let o = common::impactcam(dir, &["export", s, "--format", format, "clip"]);
+        assert!(o.status.success(), "{}", common::stderr(&o));
+        assert!(
+            common::stderr(&o).contains("dropped 1 frame(s)"),
+            "{format}: {}",
+            common::stderr(&o)
+        );
+    }
+}

@@ -26,6 +26,9 @@ const SETUP_ENABLE_COLOR: u64 = 788;
 const SETUP_REAL_BPP: u64 = 896;
 const SETUP_SHUTTER_NS: u64 = 1568;
 const SETUP_BLACK_LEVEL: u64 = 5732;
+/// Frame decimation (f32, 1 for none) and the high-precision frame rate (f64), in newer setups.
+const SETUP_DECIMATION: u64 = 10388;
+const SETUP_D_FRAME_RATE: u64 = 10400;
 const SETUP_WHITE_LEVEL: u64 = 5736;
 /// The setup's size in the current format (what `write` writes).
 const SETUP_BYTES: usize = 12432;
@@ -151,8 +154,17 @@ impl Cine {
                 "a colour cine (bEnableColor), expected greyscale",
             ));
         }
-        let rate = match field(&mut file, SETUP_FRAME_RATE, 4)?.map(|b| u32_at(&b, 0)) {
-            Some(r) if r > 0 => Some(f64::from(r)),
+        // The high-precision rate where the setup has it, else the whole-number one, else the
+        // oldest 16-bit one.
+        let precise = field(&mut file, SETUP_D_FRAME_RATE, 8)?
+            .map(|b| f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]))
+            .filter(|r| r.is_finite() && *r > 0.0 && *r <= 1e7);
+        let rate = match (
+            precise,
+            field(&mut file, SETUP_FRAME_RATE, 4)?.map(|b| u32_at(&b, 0)),
+        ) {
+            (Some(r), _) => Some(r),
+            (None, Some(r)) if r > 0 => Some(f64::from(r)),
             _ => field(&mut file, SETUP_FRAME_RATE16, 2)?
                 .map(|b| f64::from(u16_at(&b, 0)))
                 .filter(|r| *r > 0.0),
@@ -476,6 +488,11 @@ pub fn write(
         put(
             SETUP_WHITE_LEVEL,
             &((1u32 << spec.real_bpp) - 1).to_le_bytes(),
+        );
+        put(SETUP_DECIMATION, &1.0f32.to_le_bytes());
+        put(
+            SETUP_D_FRAME_RATE,
+            &f64::from(spec.frame_rate_hz).to_le_bytes(),
         );
         w.write_all(&setup)?;
         w.write_all(&(time_block as u32).to_le_bytes())?;

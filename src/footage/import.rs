@@ -154,14 +154,28 @@ pub enum ExportFormat {
     Fmf,
 }
 
-/// Writes the session at `session` to `out` in `format`; the frames written. MRAW writes
-/// `out` with the extensions .mraw and .cih.
-pub fn export(session: &Path, format: ExportFormat, out: &Path) -> Result<usize, FootageError> {
+/// What an export wrote, and what its reader must know.
+pub struct Exported {
+    pub frames: usize,
+    /// Set when the format loses something the session has (frame times across dropped frames).
+    pub caveat: Option<String>,
+}
+
+/// Writes the session at `session` to `out` in `format`. MRAW writes `out` with the
+/// extensions .mraw and .cih.
+pub fn export(session: &Path, format: ExportFormat, out: &Path) -> Result<Exported, FootageError> {
     let mut reader = SessionReader::open(session).map_err(|e| err(session, e.to_string()))?;
-    match format {
+    let dropped = crate::session::count_gaps(&reader.frames);
+    let frames = match format {
         ExportFormat::Tiff => crate::session::tiff::export_session(&mut reader, out)
-            .map_err(|e| err(out, e.to_string())),
-        ExportFormat::Mraw => super::photron::export(&mut reader, out),
-        ExportFormat::Fmf => super::fmf::export(&mut reader, out),
-    }
+            .map_err(|e| err(out, e.to_string()))?,
+        ExportFormat::Mraw => super::photron::export(&mut reader, out)?,
+        ExportFormat::Fmf => super::fmf::export(&mut reader, out)?,
+    };
+    // TIFF and MRAW hold no frame times: a reader puts frame k at k / rate, so every frame after
+    // a drop would be read as earlier than it was. FMF keeps each frame's time.
+    let caveat = (dropped > 0 && format != ExportFormat::Fmf).then(|| {
+        format!("the session dropped {dropped} frame(s); this format holds no frame times, so frames after a drop will be read as earlier than they were (FMF keeps the times)")
+    });
+    Ok(Exported { frames, caveat })
 }
