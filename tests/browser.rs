@@ -256,6 +256,8 @@ fn clicking_run_in_a_browser_shows_the_result() {
     );
     eval("document.querySelector('#sessions button').click(); true");
     wait_for(&mut eval, "!document.getElementById('viewer').hidden && document.getElementById('v-impact-mark').textContent === 'impact' && document.getElementById('v-frame').src.includes('overlay=1') && document.getElementById('v-frame').complete && document.getElementById('v-frame').naturalWidth > 0", 10);
+    // The session's trajectory and residual plots load, and the TIFF download is offered.
+    wait_for(&mut eval, "['v-traj', 'v-resid'].every(id => document.getElementById(id).complete && document.getElementById(id).naturalWidth > 0) && document.getElementById('v-tiff').href.endsWith('/frames.tif')", 10);
     let e_viewer = eval("document.getElementById('v-e').textContent");
     assert_eq!(
         e_viewer.as_str(),

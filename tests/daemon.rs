@@ -604,6 +604,22 @@ fn sessions_are_listed_and_their_frames_drawn_with_the_measurement() {
     assert!(drawn.starts_with(b"\x89PNG"));
     assert_ne!(raw, drawn, "the overlay draws on the impact frame");
 
+    for figure in ["trajectory.svg", "residuals.svg"] {
+        let (code, svg) = d.get_bytes(&format!("/api/sessions/{session}/{figure}"));
+        assert_eq!(code, 200, "{figure}");
+        assert!(String::from_utf8_lossy(&svg).contains("<svg"), "{figure}");
+    }
+    // The TIFF download: every frame, with ImageJ's frame interval.
+    let (code, tif) = d.get_bytes(&format!("/api/sessions/{session}/frames.tif"));
+    assert_eq!(code, 200);
+    let path = d.dir().join("download.tif");
+    std::fs::write(&path, &tif).unwrap();
+    let stack = impactcam::footage::open(&path, None).unwrap();
+    assert_eq!(
+        stack.len() as u64,
+        one["manifest"]["frames_recorded"].as_u64().unwrap()
+    );
+    assert_eq!(stack.info().frame_rate_hz, Some(1000.0));
     let (code, report) = d.get_bytes(&format!("/api/sessions/{session}/report.json"));
     assert_eq!(code, 200);
     let on_disk =

@@ -172,10 +172,19 @@ fn the_same_collision_from_every_format_gives_the_same_report() {
     assert_eq!(manifest["trigger"]["fired_in_frame"], fired);
     assert!(!dir.join(".imported.importing").exists());
     let imported = common::run_json(dir, &["analyze", "imported", "--json"]);
+    assert!(dir.join("imported/report.json").is_file());
     assert_eq!(imported["source"]["kind"], "session");
     assert!(
         without_source(imported) == reference,
         "the imported session's report differs"
+    );
+    // Analysed, it replays like a recording.
+    let o = common::impactcam(dir, &["replay", "imported"]);
+    assert!(
+        o.status.success(),
+        "replay of the imported session: {}{}",
+        String::from_utf8_lossy(&o.stdout),
+        common::stderr(&o)
     );
     // A second import into the same place is refused; nothing is overwritten.
     let o = common::impactcam(dir, &["import", "clip.cine", "--out", "imported"]);

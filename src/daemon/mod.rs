@@ -199,6 +199,8 @@ pub fn serve(
             .route("/api/sessions/{name}", get(sessions::one))
             .route("/api/sessions/{name}/report.json", get(sessions::report))
             .route("/api/sessions/{name}/frames/{file}", get(sessions::frame))
+            .route("/api/sessions/{name}/frames.tif", get(sessions::tiff))
+            .route("/api/sessions/{name}/{figure}", get(sessions::figure))
             .route("/api/campaigns", get(campaigns::list))
             .route("/api/campaigns/{name}", get(campaigns::one))
             .route("/api/campaigns/{name}/psi.svg", get(campaigns::psi_svg))

@@ -122,6 +122,114 @@ pub(super) async fn report(State(state): State<Shared>, Path(name): Path<String>
     }
 }
 
+/// `GET /api/sessions/{name}/trajectory.svg` and `…/residuals.svg`: the fitted trajectories
+/// with the measured centres, and each centre's residual from its fit, per axis and phase.
+pub(super) async fn figure(
+    State(state): State<Shared>,
+    Path((name, file)): Path<(String, String)>,
+) -> Response {
+    let dir = match session_dir(&state, &name) {
+        Ok(d) => d,
+        Err((status, message)) => return error(status, message),
+    };
+    let Some(report) =
+        read_json(&dir.join("report.json")).and_then(|v| serde_json::from_value::<Report>(v).ok())
+    else {
+        return error(
+            StatusCode::NOT_FOUND,
+            format!("session {name} has no report.json (not analysed)"),
+        );
+    };
+    // The session's own g, as its analysis used.
+    let g = read_json(&dir.join("session.json"))
+        .and_then(|m| m["config"]["analysis"]["gravity_mm_s2"].as_f64())
+        .unwrap_or(state.cfg.analysis.gravity_mm_s2);
+    let (svg, _) = match file.as_str() {
+        "trajectory.svg" => crate::figures::trajectory::trajectory_plot(&report, g),
+        "residuals.svg" => crate::figures::trajectory::residual_plot(&report, g),
+        other => {
+            return error(
+                StatusCode::NOT_FOUND,
+                format!(
+                    "{other:?}: expected trajectory.svg, residuals.svg, report.json or frames.tif"
+                ),
+            )
+        }
+    };
+    ([("content-type", "image/svg+xml")], svg).into_response()
+}
+
+/// `GET /api/sessions/{name}/frames.tif`: every frame as a multi-page TIFF with ImageJ's frame
+/// interval, for download. Written to a temporary file (unlinked once open) and streamed from
+/// it, so a long recording is never held in memory.
+pub(super) async fn tiff(State(state): State<Shared>, Path(name): Path<String>) -> Response {
+    let dir = match session_dir(&state, &name) {
+        Ok(d) => d,
+        Err((status, message)) => return error(status, message),
+    };
+    let exported = tokio::task::spawn_blocking(move || -> Result<std::fs::File, String> {
+        let tmp = std::env::temp_dir().join(format!(
+            "impactcam-export-{}-{}.tif",
+            std::process::id(),
+            EXPORTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+        ));
+        let mut reader = crate::session::SessionReader::open(&dir).map_err(|e| e.to_string())?;
+        let written = crate::session::tiff::export_session(&mut reader, &tmp)
+            .map_err(|e| e.to_string())
+            .and_then(|_| std::fs::File::open(&tmp).map_err(|e| e.to_string()));
+        let _ = std::fs::remove_file(&tmp);
+        written
+    })
+    .await;
+    let mut file = match exported {
+        Ok(Ok(f)) => f,
+        Ok(Err(e)) => {
+            return error(
+                StatusCode::INTERNAL_SERVER_ERROR,
+                format!("TIFF export: {e}"),
+            )
+        }
+        Err(e) => return error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
+    };
+    // Its length is known: sent whole, not chunked, so a download shows its progress.
+    let length = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let (tx, rx) = tokio::sync::mpsc::channel::<Result<Vec<u8>, std::io::Error>>(4);
+    tokio::task::spawn_blocking(move || {
+        use std::io::Read;
+        loop {
+            let mut chunk = vec![0u8; 1 << 20];
+            match file.read(&mut chunk) {
+                Ok(0) => break,
+                Ok(n) => {
+                    chunk.truncate(n);
+                    if tx.blocking_send(Ok(chunk)).is_err() {
+                        break;
+                    }
+                }
+                Err(e) => {
+                    let _ = tx.blocking_send(Err(e));
+                    break;
+                }
+            }
+        }
+    });
+    (
+        [
+            ("content-type", "image/tiff".to_string()),
+            ("content-length", length.to_string()),
+            (
+                "content-disposition",
+                format!("attachment; filename=\"{name}.tif\""),
+            ),
+        ],
+        axum::body::Body::from_stream(tokio_stream::wrappers::ReceiverStream::new(rx)),
+    )
+        .into_response()
+}
+
+/// Temporary TIFF exports made so far: part of each one's unique name.
+static EXPORTS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
 /// `GET /api/sessions/{name}/frames/{k}.png[?overlay=1]`: frame k (0-based, in recording order)
 /// as a PNG; with the overlay, the views' regions (yellow; magenta where the frame has a view
 /// not measured, with the reasons in the report's `quality.unmeasured`), the fitted
