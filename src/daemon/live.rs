@@ -83,7 +83,7 @@ fn current(state: &AppState) -> Result<Arc<LiveFrame>, (StatusCode, String)> {
         info.pixel_format.bytes_per_pixel(),
     );
     let views = geometry::views(&state.cfg);
-    let (overlay, circles) = measure(&img, &views, &state.cfg);
+    let (overlay, drawn) = measure(&img, &views, &state.cfg);
     let mut r = Raster::from_grey(img.width, img.height, &img.data);
     let raw_png = r.png().map_err(|e| internal(e.to_string()))?;
     for v in &views {
@@ -95,8 +95,11 @@ fn current(state: &AppState) -> Result<Arc<LiveFrame>, (StatusCode, String)> {
             0.5,
         );
     }
-    for (c, radius) in circles {
+    for (c, radius) in drawn.circles {
         r.circle((c[0] + 0.5, c[1] + 0.5), radius, [44, 160, 44], false);
+    }
+    for m in drawn.markers {
+        r.circle((m[0] + 0.5, m[1] + 0.5), 1.5, [230, 60, 200], false);
     }
     let drawn_png = r.png().map_err(|e| internal(e.to_string()))?;
     let f = Arc::new(LiveFrame {
@@ -112,15 +115,18 @@ fn internal(e: String) -> (StatusCode, String) {
     (StatusCode::INTERNAL_SERVER_ERROR, e)
 }
 
+/// What the live overlay draws: the circles (centre, radius, px) and the markers found.
+struct Drawn {
+    circles: Vec<([f64; 2], f64)>,
+    markers: Vec<[f64; 2]>,
+}
+
 /// Per view: its region, the circles found (centre, radius, edge width) and the exposure of its
 /// pixels. Returns the JSON and the circles to draw.
-fn measure(
-    img: &GreyImage,
-    views: &[View],
-    cfg: &crate::config::Config,
-) -> (Value, Vec<([f64; 2], f64)>) {
+fn measure(img: &GreyImage, views: &[View], cfg: &crate::config::Config) -> (Value, Drawn) {
     let mut out = Vec::new();
     let mut drawn = Vec::new();
+    let mut drawn_markers = Vec::new();
     // World x of each circle, per view: what the mirror's agreement compares.
     let mut world_x: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
     for v in views {
@@ -134,10 +140,23 @@ fn measure(
                 continue;
             };
             let width = edge_width_px(img, f.centre, f.radius);
-            circles.push(
-                json!({"centre_px": f.centre, "radius_px": f.radius, "edge_width_px": width}),
-            );
+            // The sphere's markers, found as the analysis finds them (against the disc's own
+            // shading): what a user checks for paint contrast and focus.
+            let radius_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0) / 2.0;
+            let markers: Vec<[f64; 2]> = crate::analysis::markers::find(
+                img,
+                v,
+                &f,
+                radius_mm,
+                cfg.analysis.marker_diameter_mm,
+                lv.noise_sigma,
+            )
+            .iter()
+            .map(|m| m.centre_px)
+            .collect();
+            circles.push(json!({"centre_px": f.centre, "radius_px": f.radius, "edge_width_px": width, "markers_px": markers}));
             drawn.push((f.centre, f.radius));
+            drawn_markers.extend(markers);
             let slot = usize::from(v.kind == ViewKind::Mirror);
             world_x[slot].push(v.solve(f.centre, None).x);
         }
@@ -168,7 +187,10 @@ fn measure(
     let agreement = mirror_x_agreement(&world_x[0], &world_x[1], direct_px_per_mm);
     (
         json!({"views": out, "mirror_x_agreement": agreement}),
-        drawn,
+        Drawn {
+            circles: drawn,
+            markers: drawn_markers,
+        },
     )
 }
 
@@ -363,14 +385,35 @@ mod tests {
         let mut at: Vec<[f64; 2]> = spheres.iter().map(|p| direct.project(p)).collect();
         at.extend(spheres.iter().map(|p| mirror.project(&(p + shift))));
         let r_px = cfg.spheres.sphere(0).0 / 2.0 * direct.px_per_mm;
-        let img = discs(
+        let mut img = discs(
             cfg.camera.width as usize,
             cfg.camera.height as usize,
             &at,
             r_px,
         );
-        let (overlay, circles) = measure(&img, &views, &cfg);
-        assert_eq!(circles.len(), 4, "{overlay}");
+        // A painted dot on the first sphere in the direct view, off its centre.
+        let dot = [at[0][0] + 2.2, at[0][1] - 1.6];
+        let dot_r = cfg.analysis.marker_diameter_mm / 2.0 * direct.px_per_mm;
+        for y in 0..img.height {
+            for x in 0..img.width {
+                if (x as f64 - dot[0]).hypot(y as f64 - dot[1]) < dot_r {
+                    img.data[y * img.width + x] = 60.0;
+                }
+            }
+        }
+        let (overlay, drawn) = measure(&img, &views, &cfg);
+        let near = |m: &[f64; 2]| (m[0] - dot[0]).hypot(m[1] - dot[1]) < 0.7;
+        assert!(
+            drawn.markers.iter().any(near),
+            "the dot at {dot:?} is found: {:?}",
+            drawn.markers
+        );
+        assert!(overlay["views"][0]["circles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|c| c["markers_px"].as_array().is_some_and(|m| !m.is_empty())));
+        assert_eq!(drawn.circles.len(), 4, "{overlay}");
         let pairs = overlay["mirror_x_agreement"]["pairs"].as_array().unwrap();
         assert_eq!(pairs.len(), 2, "{overlay}");
         for (pair, p) in pairs.iter().zip(&spheres) {
