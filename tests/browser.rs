@@ -217,12 +217,16 @@ fn clicking_run_in_a_browser_shows_the_result() {
         .as_str()
         .unwrap_or("")
         .contains("% saturated"));
-    // The mirror's x agreement is read out too (the simulator's spheres wait above the views
-    // before release, so it says why there is nothing to compare).
-    assert!(eval("document.getElementById('live-info').textContent")
-        .as_str()
-        .unwrap_or("")
-        .contains("mirror x agreement: "));
+    // The mirror's x agreement is read out too, in mm and px for each sphere (the simulator's
+    // preview holds both spheres in view).
+    let info = eval("document.getElementById('live-info').textContent");
+    let info = info.as_str().unwrap_or("");
+    assert!(
+        info.contains("mirror x agreement: ")
+            && info.contains(" mm (")
+            && info.contains("2 circle(s)"),
+        "{info}"
+    );
 
     eval("document.getElementById('notes').value = 'from the browser'; document.getElementById('campaign').value = 'glass beads'; document.getElementById('tube').value = '30'; document.getElementById('run').click(); true");
     let e_text = wait_for(

@@ -717,6 +717,22 @@ fn live_view_shows_the_camera_while_idle_and_pauses_while_recording() {
             .map(|x| x.as_u64().unwrap())
             .sum();
         assert_eq!(pixels, 240 * 96, "{v}");
+        // The simulator's preview holds both spheres in view: two circles, each with its edge
+        // width (the focus figure).
+        let circles = v["circles"].as_array().unwrap();
+        assert_eq!(circles.len(), 2, "{v}");
+        assert!(
+            circles.iter().all(|c| c["edge_width_px"]
+                .as_f64()
+                .is_some_and(|w| w > 0.0 && w < 6.0)),
+            "{v}"
+        );
+    }
+    // Both views see x: the default rig's mirror agrees with the direct view well inside a pixel.
+    let pairs = overlay["mirror_x_agreement"]["pairs"].as_array().unwrap();
+    assert_eq!(pairs.len(), 2, "{overlay}");
+    for p in pairs {
+        assert!(p["difference_px"].as_f64().unwrap().abs() < 0.3, "{p}");
     }
 
     // The stream: parts arrive about every 100 ms.

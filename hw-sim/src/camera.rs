@@ -30,6 +30,8 @@ pub struct SimCamera {
     next_index: u64,
     delivered: u64,
     rng: Rng,
+    /// Preview (setting the rig up): the spheres drawn at rest in view.
+    preview: bool,
 }
 
 impl SimCamera {
@@ -44,6 +46,7 @@ impl SimCamera {
             next_index: 0,
             delivered: 0,
             rng,
+            preview: false,
         }
     }
 
@@ -57,6 +60,13 @@ impl SimCamera {
         let idx = (self.lab.clock().now_s() * fps).ceil().max(0.0) as u64;
         self.start_index = Some(idx);
         self.next_index = idx;
+    }
+
+    /// Preview on: frames show the spheres held still shortly before impact
+    /// (`Scenario::at_rest_in_view`), as a user holds them to set up focus, exposure and
+    /// geometry; off (the default): the experiment as it runs.
+    pub fn set_preview(&mut self, on: bool) {
+        self.preview = on;
     }
 
     /// Stops streaming: the lab clock no longer waits for this camera (see `clock`).
@@ -106,11 +116,22 @@ impl SimCamera {
             let mut data = buf;
             self.renderer
                 .set_tube_exits([stage.scenario.tube_exit(0), stage.scenario.tube_exit(1)]);
-            self.renderer.render(
-                t,
-                &move |tt| SimLab::bodies_in(&stage.scenario, tt, release),
-                &mut data,
-            );
+            if self.preview {
+                let sc = &stage.scenario;
+                let bodies = sc.at_rest_in_view();
+                let markers = [
+                    sc.marker_positions(0, &bodies[0]),
+                    sc.marker_positions(1, &bodies[1]),
+                ];
+                self.renderer
+                    .render(t, &move |_| (bodies, markers.clone()), &mut data);
+            } else {
+                self.renderer.render(
+                    t,
+                    &move |tt| SimLab::bodies_in(&stage.scenario, tt, release),
+                    &mut data,
+                );
+            }
             self.delivered += 1;
             return Ok(SimFrame {
                 frame_id,

@@ -200,6 +200,28 @@ impl Scenario {
         }
     }
 
+    /// Both spheres held still where they fly shortly before impact, about three contact
+    /// distances apart, where both views see them: what the camera's preview shows to set the
+    /// rig up (focus, exposure, geometry). The tube exits themselves are above the direct view in
+    /// most rigs. Never part of an experiment.
+    pub fn at_rest_in_view(&self) -> [Body; 2] {
+        let contact = self.exit[0].radius_mm + self.exit[1].radius_mm;
+        let closing = (self.exit[0].vel_mm_s - self.exit[1].vel_mm_s).norm();
+        let flight = (self.impact_tau_s - self.exit_tau_s).max(0.0);
+        let before = if closing > 0.0 {
+            (2.0 * contact / closing).min(flight)
+        } else {
+            0.5 * flight
+        };
+        let tau = self.impact_tau_s - before;
+        let bodies = self.state_at(tau);
+        bodies.map(|b| Body {
+            vel_mm_s: V3::zeros(),
+            spin_rad_s: V3::zeros(),
+            ..b
+        })
+    }
+
     /// Where sphere i leaves its tube (its centre at the exit, mm) and the tube's direction
     /// (unit, downhill): what a look's tube ends are drawn from.
     pub fn tube_exit(&self, i: usize) -> (V3, V3) {

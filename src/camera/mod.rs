@@ -50,6 +50,11 @@ pub trait Camera: Send {
     /// The next frame, written into `buf` (reused to avoid allocation on the hot path).
     fn next_frame(&mut self, buf: Vec<u8>) -> Result<Frame, CameraError>;
     fn stop(&mut self) -> Result<(), CameraError>;
+    /// Preview for setting the rig up (the daemon's live view), on or off. A real camera shows
+    /// what it sees either way; the simulator shows the spheres held still in both views (where
+    /// they fly shortly before impact), as a user holds them to focus and check the geometry,
+    /// instead of waiting out of view in their tubes.
+    fn set_preview(&mut self, _on: bool) {}
 }
 
 /// Opens the camera the config names. `lab` is the simulated lab when the rig is simulated.

@@ -54,4 +54,7 @@ impl Camera for SimBackend {
         self.camera.stop();
         Ok(())
     }
+    fn set_preview(&mut self, on: bool) {
+        self.camera.set_preview(on);
+    }
 }

@@ -69,8 +69,11 @@ fn current(state: &AppState) -> Result<Arc<LiveFrame>, (StatusCode, String)> {
         ));
     };
     let info = camera.info();
+    // Preview only for this grab: an experiment on this camera records the experiment.
+    camera.set_preview(true);
     let grabbed = camera.start().and_then(|_| camera.next_frame(Vec::new()));
     let stopped = camera.stop();
+    camera.set_preview(false);
     drop(slot);
     let frame = grabbed
         .and_then(|f| stopped.map(|_| f))
