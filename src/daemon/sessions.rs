@@ -234,7 +234,8 @@ static EXPORTS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new
 /// as a PNG; with the overlay, the views' regions (yellow; magenta where the frame has a view
 /// not measured, with the reasons in the report's `quality.unmeasured`), the fitted
 /// trajectories (light blue and light red), the measured circles and centres (a blue, b red),
-/// the markers found (green), and a red border on the impact frame.
+/// the markers found (green) and those of the nearest other frame carried here by the fitted
+/// spins (orange), and a red border on the impact frame.
 pub(super) async fn frame(
     State(state): State<Shared>,
     Path((name, file)): Path<(String, String)>,
@@ -401,6 +402,15 @@ fn draw_overlay(r: &mut Raster, cfg: &crate::config::Config, report: Option<&Rep
                 }
             }
         }
+    }
+    // The markers of the nearest other frame, carried here by the fitted spins (orange): on
+    // the markers found when the spin fits them.
+    let radii = [0, 1].map(|i| cfg.spheres.sphere(i).0 / 2.0);
+    for m in crate::figures::carried::carried(rep, &views, radii, k)
+        .iter()
+        .flatten()
+    {
+        r.circle((m[0] + 0.5, m[1] + 0.5), 1.6, [255, 140, 0], false);
     }
     if rep.impact.frame as usize == k {
         let (w, h) = (r.width() as f64, r.height() as f64);

@@ -4,6 +4,7 @@
 //! both draw with these.
 
 pub mod canvas;
+pub mod carried;
 mod font;
 pub mod trajectory;
 
