@@ -8,16 +8,22 @@ use super::markers;
 use super::tracking::FrameObs;
 
 /// Per-sphere coordinate series (x, y, z) in world mm over the given frames, built from the
-/// views: y from the direct view, z from the mirror, x from the direct view when there is one
-/// (the mirror's x is the calibration check).
+/// views: y from the direct view, z from the mirror, x from the direct view where it measured
+/// the sphere (the mirror's x is then the calibration check), else from the mirror.
 pub(super) fn series(obs: &[FrameObs], views: &[View], s: usize, frames: &[usize]) -> [Series; 3] {
     let mut out: [Series; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let has_direct = views.iter().any(|v| v.kind == ViewKind::Direct);
     for f in frames.iter().map(|&k| &obs[k]) {
         for (vi, view) in views.iter().enumerate() {
             let Some(m) = &f.spheres[s][vi] else { continue };
+            // The direct view's x where it measured the sphere in this frame; the mirror's
+            // (refined to agree with it) where it did not.
+            let direct_saw = views
+                .iter()
+                .zip(&f.spheres[s])
+                .any(|(v, m)| v.kind == ViewKind::Direct && m.is_some());
             for (axis, val) in view.unproject(m.centre_px, f.position_mm[s].as_ref()) {
-                if axis == 0 && has_direct && view.kind != ViewKind::Direct {
+                if axis == 0 && has_direct && direct_saw && view.kind != ViewKind::Direct {
                     continue;
                 }
                 out[axis].push((f.time_s, val));
@@ -27,9 +33,14 @@ pub(super) fn series(obs: &[FrameObs], views: &[View], s: usize, frames: &[usize
     out
 }
 
+/// Fewer frames than this of a phase in the primary view, and the phase is the span any view
+/// saw the sphere in.
+const MIN_PRIMARY_FRAMES: usize = 3;
+
 /// Frames of one flight phase of sphere `s` (before or after `split`, more than `guard` away):
 /// only the time span in which the primary view (direct, when configured) saw it, because the
-/// other view may still see the sphere rolling in its tube, where free flight does not hold.
+/// other view may still see the sphere rolling in its tube, where free flight does not hold;
+/// unless the primary view saw it in fewer than `MIN_PRIMARY_FRAMES` frames there.
 pub(super) fn side_frames(
     obs: &[FrameObs],
     s: usize,
@@ -44,9 +55,23 @@ pub(super) fn side_frames(
             t > split + guard
         }
     };
+    // Where the primary view hardly sees the sphere on this side (two spheres passing at
+    // different depths can overlap in it for the whole phase), the span any view saw it in.
+    let primary_frames = obs
+        .iter()
+        .filter(|f| on_side(f.time_s) && f.spheres[s][0].is_some())
+        .count();
+    let any_view = primary_frames < MIN_PRIMARY_FRAMES;
     let seen = || {
         obs.iter()
-            .filter(|f| on_side(f.time_s) && f.spheres[s][0].is_some())
+            .filter(move |f| {
+                on_side(f.time_s)
+                    && if any_view {
+                        f.spheres[s].iter().any(Option::is_some)
+                    } else {
+                        f.spheres[s][0].is_some()
+                    }
+            })
             .map(|f| f.time_s)
     };
     let lo = seen().fold(f64::INFINITY, f64::min);
