@@ -8,7 +8,7 @@ use crate::analysis::markers;
 use crate::analysis::report::{Report, SphereTrack, TrackFrame, ViewTrack};
 use nalgebra::UnitQuaternion;
 
-fn view_track<'a>(s: &'a SphereTrack, kind: ViewKind) -> Option<&'a ViewTrack> {
+fn view_track(s: &SphereTrack, kind: ViewKind) -> Option<&ViewTrack> {
     match kind {
         ViewKind::Direct => s.direct.as_ref(),
         ViewKind::Mirror => s.mirror.as_ref(),
