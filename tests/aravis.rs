@@ -197,7 +197,8 @@ fn live_view_grabs_frames_from_the_fake_genicam_camera() {
 
 /// The live view over GigE Vision: the daemon and the fake GigE camera in a loopback-only
 /// namespace, ten frames fetched there (with Python's urllib, which `scripts/test` provides)
-/// from a camera started and stopped for each one.
+/// from a camera started and stopped for each one: each a new frame, by its device timestamp
+/// (the GigE camera numbers the frames of each start from 1).
 #[test]
 #[ignore = "needs --features aravis, aravis-tools' fake GigE camera, unshare and python3: scripts/test provides them and runs this test"]
 fn live_view_over_gige_on_loopback_in_a_namespace() {
@@ -208,7 +209,7 @@ fn live_view_over_gige_on_loopback_in_a_namespace() {
         .replace("device = \"Fake_1\"", "device = \"127.0.0.1\"")
         .replace("frame_rate_hz = 500.0", "frame_rate_hz = 100.0");
     std::fs::write(tmp.path().join("gv.toml"), cfg).unwrap();
-    let fetch = "import json, urllib.request as u\nids = []\nfor k in range(10):\n    png = u.urlopen('http://127.0.0.1:8931/api/camera/frame.png', timeout=20).read()\n    assert png[:4] == b'\\x89PNG', png[:80]\n    o = json.load(u.urlopen('http://127.0.0.1:8931/api/camera/overlay.json', timeout=20))\n    ids.append(o['frame_id'])\n    assert (o['width'], o['height']) == (320, 240), o\nprint('frames', len(ids), 'ids', len(set(ids)))\n";
+    let fetch = "import json, time, urllib.request as u\nids = []\nfor k in range(10):\n    time.sleep(0.1)\n    png = u.urlopen('http://127.0.0.1:8931/api/camera/frame.png', timeout=20).read()\n    assert png[:4] == b'\\x89PNG', png[:80]\n    o = json.load(u.urlopen('http://127.0.0.1:8931/api/camera/overlay.json', timeout=20))\n    ids.append(o['timestamp_ns'])\n    assert (o['width'], o['height']) == (320, 240), o\nprint('frames', len(ids), 'ids', len(set(ids)), ids)\n";
     std::fs::write(tmp.path().join("fetch.py"), fetch).unwrap();
     let script = format!(
         "ip link set lo up && {{ \"{fake}\" -i 127.0.0.1 >/dev/null 2>&1 & fake=$!; sleep 1; \"{bin}\" serve --config gv.toml --listen 127.0.0.1:8931 >serve.log 2>&1 & d=$!; sleep 1; python3 fetch.py; rc=$?; kill $d $fake; exit $rc; }}",
@@ -230,7 +231,7 @@ fn live_view_over_gige_on_loopback_in_a_namespace() {
     let distinct: usize = said
         .split("ids ")
         .nth(1)
-        .and_then(|x| x.trim().parse().ok())
+        .and_then(|x| x.split_whitespace().next()?.parse().ok())
         .unwrap_or(0);
     assert!(distinct >= 5, "new frames keep coming: {said}");
 }
