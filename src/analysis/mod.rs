@@ -361,15 +361,18 @@ pub fn analyze_observations(
             warnings.extend(warning);
         }
     }
-    // Two views that lost an axis (the spheres hid each other in the only view that measures
-    // it) give 2-D velocities: the contact impulse cannot check the markers' spins, which can be
-    // wrong by many times their own σ (a dot of one sphere seen on the other, a highlight): not
-    // reported.
+    // The primary view lost the spheres for a whole phase (they overlap in it, as after an
+    // impact at different depths), so that phase came from the other view alone and an axis was
+    // lost: the velocities are 2-D, the contact impulse cannot check the markers' spins, and the
+    // markers there can be wrong by many times their own σ (validation v03: 20σ). Not reported.
     let axis_lost = views.len() == 2 && (0..3).any(|i| fits.iter().all(|f| f.axes[i].is_none()));
-    if axis_lost && reconciled.iter().any(Option::is_some) {
+    if axis_lost
+        && phases::primary_view_lost(&obs, split, 0.5 * period)
+        && reconciled.iter().any(Option::is_some)
+    {
         reconciled = [None, None, None, None];
         warnings.push(
-            "spins not reported: with an axis lost, the velocities are 2-D and the contact impulse cannot check the markers' spins".into(),
+            "spins not reported: the direct view lost the spheres for a whole phase, so the velocities are 2-D and the contact impulse cannot check the markers' spins".into(),
         );
     }
     let phase_names = ["a before", "b before", "a after", "b after"];

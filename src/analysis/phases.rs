@@ -81,6 +81,26 @@ pub(super) fn side_frames(
         .collect()
 }
 
+/// Whether the primary view saw a sphere in fewer than `MIN_PRIMARY_FRAMES` frames of one of
+/// its phases, so that phase was taken from any view (`side_frames`).
+pub(super) fn primary_view_lost(obs: &[FrameObs], split: f64, guard: f64) -> bool {
+    [(0, true), (1, true), (0, false), (1, false)]
+        .iter()
+        .any(|&(s, pre)| {
+            obs.iter()
+                .filter(|f| {
+                    if pre {
+                        f.time_s < split - guard
+                    } else {
+                        f.time_s > split + guard
+                    }
+                })
+                .filter(|f| f.spheres[s][0].is_some())
+                .count()
+                < MIN_PRIMARY_FRAMES
+        })
+}
+
 /// [a pre, b pre, a post, b post]
 pub(super) fn phases(obs: &[FrameObs], split: f64, guard: f64) -> [Vec<usize>; 4] {
     [(0, true), (1, true), (0, false), (1, false)]
