@@ -235,6 +235,31 @@ pub fn lift_at(
     })
 }
 
+/// Where the two spheres' discs overlap in a view (passing at different depths, one partly
+/// behind the other), a dot inside the other sphere's disc may be either sphere's: it is left
+/// out of both, so that one sphere's markers never turn the other's spin.
+pub(super) fn drop_in_the_other_disc(obs: &mut [super::tracking::FrameObs]) {
+    for f in obs.iter_mut() {
+        let [a, b] = &mut f.spheres;
+        for (ma, mb) in a.iter_mut().zip(b.iter_mut()) {
+            let (Some(ma), Some(mb)) = (ma.as_mut(), mb.as_mut()) else {
+                continue;
+            };
+            let d = (ma.centre_px[0] - mb.centre_px[0]).hypot(ma.centre_px[1] - mb.centre_px[1]);
+            if d >= 0.5 * (ma.diameter_px + mb.diameter_px) {
+                continue;
+            }
+            let inside = |m: &MarkerObs, other: &super::tracking::Measurement| {
+                (m.centre_px[0] - other.centre_px[0]).hypot(m.centre_px[1] - other.centre_px[1])
+                    < 0.5 * other.diameter_px
+            };
+            let (ca, cb) = (ma.clone(), mb.clone());
+            ma.markers.retain(|m| !inside(m, &cb));
+            mb.markers.retain(|m| !inside(m, &ca));
+        }
+    }
+}
+
 /// The sphere's own shading under its markers: grey = a + b·n + c·n² + d·x + f·y, with n the
 /// surface normal's component towards the camera (√(1 − ρ²/R²)) and x, y the image offsets over
 /// R (light from one side). Fitted to the disc's pixels by least squares, dropping pixels far

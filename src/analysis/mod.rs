@@ -166,31 +166,6 @@ pub fn analyze_detailed(
     })
 }
 
-/// Where the two spheres' discs overlap in a view (passing at different depths, one partly
-/// behind the other), a dot inside the other sphere's disc may be either sphere's: it is left
-/// out of both, so that one sphere's markers never turn the other's spin.
-fn drop_markers_in_the_other_disc(obs: &mut [FrameObs]) {
-    for f in obs.iter_mut() {
-        let [a, b] = &mut f.spheres;
-        for (ma, mb) in a.iter_mut().zip(b.iter_mut()) {
-            let (Some(ma), Some(mb)) = (ma.as_mut(), mb.as_mut()) else {
-                continue;
-            };
-            let d = (ma.centre_px[0] - mb.centre_px[0]).hypot(ma.centre_px[1] - mb.centre_px[1]);
-            if d >= 0.5 * (ma.diameter_px + mb.diameter_px) {
-                continue;
-            }
-            let inside = |m: &markers::MarkerObs, other: &tracking::Measurement| {
-                (m.centre_px[0] - other.centre_px[0]).hypot(m.centre_px[1] - other.centre_px[1])
-                    < 0.5 * other.diameter_px
-            };
-            let (ca, cb) = (ma.clone(), mb.clone());
-            ma.markers.retain(|m| !inside(m, &cb));
-            mb.markers.retain(|m| !inside(m, &ca));
-        }
-    }
-}
-
 /// Analyses centres digitised elsewhere (see `tracks` for the CSV columns).
 pub fn analyze_tracks(path: &std::path::Path, cfg: &Config) -> Result<Report, AnalysisError> {
     let views = geometry::views(cfg);
@@ -224,7 +199,7 @@ pub fn analyze_observations(
         message,
     };
     let (mut views, mut obs) = (views, obs);
-    drop_markers_in_the_other_disc(&mut obs);
+    markers::drop_in_the_other_disc(&mut obs);
     world::place(&mut obs, &views);
     let mut calibration = calibrate_mirror(&obs, &mut views);
     if calibration.as_ref().is_some_and(|c| c.refined) {
@@ -235,44 +210,7 @@ pub fn analyze_observations(
     let period = 1.0 / info.frame_rate_hz;
     let primary = 0; // views[0] is direct when present, else the mirror
 
-    // Initial split: the frame where a and b are closest together in 3-D, from both views
-    // where both see both spheres (spheres passing at different depths overlap in one view
-    // long before and after they touch); else where they are seen closest in the primary view.
-    let separation_mm = |f: &tracking::FrameObs| -> Option<f64> {
-        if views.len() < 2 {
-            return None;
-        }
-        let mut d = [None::<f64>; 3];
-        for (vi, v) in views.iter().enumerate() {
-            let (a, b) = (f.spheres[0][vi].as_ref()?, f.spheres[1][vi].as_ref()?);
-            for ((axis, xa), (_, xb)) in v
-                .unproject(a.centre_px, f.position_mm[0].as_ref())
-                .into_iter()
-                .zip(v.unproject(b.centre_px, f.position_mm[1].as_ref()))
-            {
-                d[axis].get_or_insert(xa - xb);
-            }
-        }
-        Some(
-            d.iter()
-                .map(|x| x.map(|x| x * x))
-                .sum::<Option<f64>>()?
-                .sqrt(),
-        )
-    };
-    let closest_3d = obs
-        .iter()
-        .filter_map(|f| Some((f.time_s, separation_mm(f)?)))
-        .min_by(|a, b| a.1.total_cmp(&b.1));
-    let mut closest: Option<(f64, f64)> = closest_3d;
-    for f in obs.iter().filter(|_| closest_3d.is_none()) {
-        if let (Some(a), Some(b)) = (&f.spheres[0][primary], &f.spheres[1][primary]) {
-            let d = (a.centre_px[0] - b.centre_px[0]).hypot(a.centre_px[1] - b.centre_px[1]);
-            if closest.is_none_or(|(_, dd)| d < dd) {
-                closest = Some((f.time_s, d));
-            }
-        }
-    }
+    let closest = phases::closest_approach(&obs, &views, primary);
     let Some((mut split, _)) = closest else {
         return Err(input_err(format!(
             "spheres a and b were never both measured in the {} view ({} frames; see the geometry and threshold settings)",

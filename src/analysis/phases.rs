@@ -81,6 +81,56 @@ pub(super) fn side_frames(
         .collect()
 }
 
+/// The first guess of the impact: (time, separation) of the frame where a and b are closest
+/// together in 3-D, from both views where both see both spheres (spheres passing at different
+/// depths overlap in one view long before and after they touch); else where they are seen
+/// closest in the primary view (separation in px). None if they are never seen together.
+pub(super) fn closest_approach(
+    obs: &[FrameObs],
+    views: &[View],
+    primary: usize,
+) -> Option<(f64, f64)> {
+    let separation_mm = |f: &FrameObs| -> Option<f64> {
+        if views.len() < 2 {
+            return None;
+        }
+        let mut d = [None::<f64>; 3];
+        for (vi, v) in views.iter().enumerate() {
+            let (a, b) = (f.spheres[0][vi].as_ref()?, f.spheres[1][vi].as_ref()?);
+            for ((axis, xa), (_, xb)) in v
+                .unproject(a.centre_px, f.position_mm[0].as_ref())
+                .into_iter()
+                .zip(v.unproject(b.centre_px, f.position_mm[1].as_ref()))
+            {
+                d[axis].get_or_insert(xa - xb);
+            }
+        }
+        Some(
+            d.iter()
+                .map(|x| x.map(|x| x * x))
+                .sum::<Option<f64>>()?
+                .sqrt(),
+        )
+    };
+    let closest_3d = obs
+        .iter()
+        .filter_map(|f| Some((f.time_s, separation_mm(f)?)))
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    if closest_3d.is_some() {
+        return closest_3d;
+    }
+    let mut closest: Option<(f64, f64)> = None;
+    for f in obs {
+        if let (Some(a), Some(b)) = (&f.spheres[0][primary], &f.spheres[1][primary]) {
+            let d = (a.centre_px[0] - b.centre_px[0]).hypot(a.centre_px[1] - b.centre_px[1]);
+            if closest.is_none_or(|(_, dd)| d < dd) {
+                closest = Some((f.time_s, d));
+            }
+        }
+    }
+    closest
+}
+
 /// Whether the primary view saw a sphere in fewer than `MIN_PRIMARY_FRAMES` frames of one of
 /// its phases, so that phase was taken from any view (`side_frames`).
 pub(super) fn primary_view_lost(obs: &[FrameObs], split: f64, guard: f64) -> bool {
