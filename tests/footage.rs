@@ -414,6 +414,11 @@ fn bad_footage_gets_one_line_naming_the_file() {
             .unwrap();
     }
     std::fs::write(dir.join("notes.txt"), "not footage").unwrap();
+    // A file shorter than the default pre-trigger ring imports as a session that reads back.
+    let o = common::impactcam(dir, &["import", "ok.cih", "--out", "short-session"]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let r = SessionReader::open(&dir.join("short-session")).unwrap();
+    assert_eq!(r.frames.len(), 3);
 
     for (file, says) in [
         ("short.cih", "says 3 frames, but the file holds only 2"),

@@ -34,11 +34,20 @@ pub fn import(file: &Path, out: &Path, config: Option<&Config>) -> Result<Import
             "already exists, expected a new directory for the session",
         ));
     }
-    let base = config.cloned().unwrap_or_else(Config::default_config);
+    let mut base = config.cloned().unwrap_or_else(Config::default_config);
     let mut src = super::open(file, Some(base.camera.frame_rate_hz))?;
     let info = src.info().clone();
     let rate = info.frame_rate_hz.unwrap_or(base.camera.frame_rate_hz);
-    let mut cfg = base
+    // The session's config describes what it holds: the file's frames, no pre-trigger ring
+    // (nothing was recorded here), the file's pixel format; then validated like any.
+    base.recording.frames = u32::try_from(src.len()).unwrap_or(u32::MAX);
+    base.recording.pre_trigger_frames = 0;
+    base.camera.pixel_format = if info.bytes_per_pixel == 1 {
+        PixelFormat::Mono8
+    } else {
+        PixelFormat::Mono16
+    };
+    let cfg = base
         .for_footage(info.width, info.height, Some(rate))
         .map_err(|m| {
             err(
@@ -49,7 +58,6 @@ pub fn import(file: &Path, out: &Path, config: Option<&Config>) -> Result<Import
                 ),
             )
         })?;
-    cfg.recording.frames = u32::try_from(src.len()).unwrap_or(u32::MAX);
     let camera = CameraInfo {
         backend: "import".into(),
         device: format!("{}:{}", info.kind, info.name),
