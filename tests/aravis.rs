@@ -77,13 +77,8 @@ fn capture_from_the_fake_genicam_camera_records_400_frames_without_drops() {
     );
 }
 
-/// The fake GigE Vision camera (`arv-fake-gv-camera-0.8` from aravis-tools; `scripts/test` unpacks it
-/// and sets ARV_FAKE_GV_CAMERA) on 127.0.0.1, and impactcam capturing from it over the real
-/// GigE Vision code path — both inside a network namespace that has only loopback, so discovery
-/// broadcasts reach nothing outside this machine.
-#[test]
-#[ignore = "needs --features aravis, aravis-tools' fake GigE camera and unshare: scripts/test provides them and runs this test"]
-fn capture_from_the_fake_gige_camera_on_loopback_in_a_namespace() {
+/// aravis-tools' fake GigE camera (`ARV_FAKE_GV_CAMERA`, which `scripts/test` sets), checked to run.
+fn fake_gige_camera() -> String {
     let fake =
         std::env::var("ARV_FAKE_GV_CAMERA").unwrap_or_else(|_| "arv-fake-gv-camera-0.8".into());
     let found = Command::new(&fake)
@@ -92,6 +87,17 @@ fn capture_from_the_fake_gige_camera_on_loopback_in_a_namespace() {
         .map(|o| o.status.success())
         .unwrap_or(false);
     assert!(found, "the fake GigE camera {fake:?} is not installed: run scripts/test, or set ARV_FAKE_GV_CAMERA to arv-fake-gv-camera-0.8 from Debian's aravis-tools");
+    fake
+}
+
+/// The fake GigE Vision camera (`arv-fake-gv-camera-0.8` from aravis-tools; `scripts/test` unpacks it
+/// and sets ARV_FAKE_GV_CAMERA) on 127.0.0.1, and impactcam capturing from it over the real
+/// GigE Vision code path — both inside a network namespace that has only loopback, so discovery
+/// broadcasts reach nothing outside this machine.
+#[test]
+#[ignore = "needs --features aravis, aravis-tools' fake GigE camera and unshare: scripts/test provides them and runs this test"]
+fn capture_from_the_fake_gige_camera_on_loopback_in_a_namespace() {
+    let fake = fake_gige_camera();
     let tmp = tempfile::tempdir().unwrap();
     let cfg = CONFIG
         .replace("device = \"Fake_1\"", "device = \"127.0.0.1\"")
@@ -202,8 +208,7 @@ fn live_view_grabs_frames_from_the_fake_genicam_camera() {
 #[test]
 #[ignore = "needs --features aravis, aravis-tools' fake GigE camera, unshare and python3: scripts/test provides them and runs this test"]
 fn live_view_over_gige_on_loopback_in_a_namespace() {
-    let fake =
-        std::env::var("ARV_FAKE_GV_CAMERA").unwrap_or_else(|_| "arv-fake-gv-camera-0.8".into());
+    let fake = fake_gige_camera();
     let tmp = tempfile::tempdir().unwrap();
     let cfg = CONFIG
         .replace("device = \"Fake_1\"", "device = \"127.0.0.1\"")

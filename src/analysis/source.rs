@@ -168,11 +168,7 @@ impl FrameSource for FileSource {
         Ok(())
     }
     fn frames_dropped(&self) -> u64 {
-        crate::session::count_gaps(
-            &(0..self.file.len())
-                .map(|k| self.file.meta(k))
-                .collect::<Vec<_>>(),
-        )
+        crate::session::count_gaps(self.file.frames())
     }
     fn dimensions(&self) -> (u32, u32) {
         let i = self.file.info();
@@ -204,9 +200,11 @@ pub fn rate_for(file: &dyn FrameFile, config_rate_hz: f64) -> (f64, Option<Strin
 
 /// The frame rate the median interval between a file's frame ids and times gives, Hz.
 fn rate_from_times(file: &dyn FrameFile) -> Option<f64> {
-    let mut per_frame: Vec<f64> = (1..file.len())
-        .filter_map(|k| {
-            let (a, b) = (file.meta(k - 1), file.meta(k));
+    let mut per_frame: Vec<f64> = file
+        .frames()
+        .windows(2)
+        .filter_map(|w| {
+            let (a, b) = (w[0], w[1]);
             let frames = b.frame_id.checked_sub(a.frame_id).filter(|d| *d > 0)?;
             Some(b.timestamp_ns.saturating_sub(a.timestamp_ns) as f64 / frames as f64)
         })

@@ -175,20 +175,23 @@ pub fn load(paths: &[PathBuf], skipped: &mut Vec<String>) -> Result<Vec<Collisio
 }
 
 /// The sessions directly under `dir` whose manifest puts them in `campaign`
-/// (`config.experiment.campaign`), in name order, at most `max`.
-pub fn sessions_in_campaign(dir: &Path, campaign: &str, max: usize) -> Vec<PathBuf> {
-    let mut found: Vec<PathBuf> = campaign_of_each(dir, max)
+/// (`config.experiment.campaign`), in name order, with their labels; at most `max` looked at.
+pub fn sessions_in_campaign(
+    dir: &Path,
+    campaign: &str,
+    max: usize,
+) -> Vec<(PathBuf, crate::config::ExperimentLabel)> {
+    let mut found: Vec<_> = labelled_sessions(dir, max)
         .into_iter()
-        .filter(|(_, c)| c == campaign)
-        .map(|(p, _)| p)
+        .filter(|(_, l)| l.campaign.as_deref() == Some(campaign))
         .collect();
-    found.sort();
+    found.sort_by(|a, b| a.0.cmp(&b.0));
     found
 }
 
-/// (session directory, campaign name) for each session directly under `dir` that belongs to a
+/// (session directory, its label) for each session directly under `dir` that belongs to a
 /// campaign, at most `max` sessions looked at (newest names first).
-pub fn campaign_of_each(dir: &Path, max: usize) -> Vec<(PathBuf, String)> {
+pub fn labelled_sessions(dir: &Path, max: usize) -> Vec<(PathBuf, crate::config::ExperimentLabel)> {
     let mut sessions: Vec<PathBuf> = std::fs::read_dir(dir)
         .map(|entries| {
             entries
@@ -205,8 +208,9 @@ pub fn campaign_of_each(dir: &Path, max: usize) -> Vec<(PathBuf, String)> {
             // Only the label is wanted: the manifest is read as JSON, not validated as a whole.
             let text = std::fs::read_to_string(p.join("session.json")).ok()?;
             let v: serde_json::Value = serde_json::from_str(&text).ok()?;
-            let name = v["config"]["experiment"]["campaign"].as_str()?.to_string();
-            Some((p, name))
+            let label: crate::config::ExperimentLabel =
+                serde_json::from_value(v["config"]["experiment"].clone()).ok()?;
+            label.campaign.is_some().then_some((p, label))
         })
         .collect()
 }

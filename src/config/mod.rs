@@ -479,11 +479,12 @@ impl Config {
     }
 
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|cause| ConfigError::Read {
-            path: path.into(),
-            cause,
+        let cfg = Config::load_unchecked(path)?;
+        cfg.validate().map_err(|message| ConfigError::Invalid {
+            origin: path.display().to_string(),
+            message,
         })?;
-        Config::from_toml_str(&text, &path.display().to_string())
+        Ok(cfg)
     }
 
     /// A config file parsed but not yet validated: for footage recorded elsewhere, whose frame

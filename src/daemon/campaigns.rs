@@ -21,8 +21,10 @@ pub(super) async fn list(State(state): State<Shared>) -> Response {
     let dir = state.cfg.recording.dir.clone();
     let counts = tokio::task::spawn_blocking(move || {
         let mut counts: BTreeMap<String, usize> = BTreeMap::new();
-        for (_, name) in campaign::campaign_of_each(&dir, MAX_SESSIONS_SCANNED) {
-            *counts.entry(name).or_default() += 1;
+        for (_, label) in campaign::labelled_sessions(&dir, MAX_SESSIONS_SCANNED) {
+            if let Some(name) = label.campaign {
+                *counts.entry(name).or_default() += 1;
+            }
         }
         counts
     })
@@ -53,27 +55,23 @@ async fn compute(state: &Shared, name: String) -> Result<Computed, Response> {
     }
     let dir = state.cfg.recording.dir.clone();
     let result = tokio::task::spawn_blocking(move || {
-        let sessions = campaign::sessions_in_campaign(&dir, &name, MAX_SESSIONS_SCANNED);
-        if sessions.is_empty() {
+        let labelled = campaign::sessions_in_campaign(&dir, &name, MAX_SESSIONS_SCANNED);
+        if labelled.is_empty() {
             return Err((
                 StatusCode::NOT_FOUND,
                 format!("no session in the sessions directory belongs to campaign {name:?}"),
             ));
         }
-        let mut notes = BTreeMap::new();
-        for s in &sessions {
-            let label = std::fs::read_to_string(s.join("session.json"))
-                .ok()
-                .and_then(|t| serde_json::from_str::<Value>(&t).ok())
-                .and_then(|v| {
-                    v["config"]["experiment"]["notes"]
-                        .as_str()
-                        .map(String::from)
-                });
-            if let (Some(n), Some(file)) = (label, s.file_name()) {
-                notes.insert(file.to_string_lossy().into_owned(), n);
-            }
-        }
+        let notes: BTreeMap<String, String> = labelled
+            .iter()
+            .filter_map(|(p, l)| {
+                Some((
+                    p.file_name()?.to_string_lossy().into_owned(),
+                    l.notes.clone()?,
+                ))
+            })
+            .collect();
+        let sessions: Vec<_> = labelled.into_iter().map(|(p, _)| p).collect();
         let mut skipped = Vec::new();
         // A session of another material, or a report that is not a report, is the lab's to see:
         // the same refusal `impactcam fit` gives.

@@ -348,11 +348,8 @@ impl FrameFile for Cine {
     fn info(&self) -> &FileInfo {
         &self.info
     }
-    fn len(&self) -> usize {
-        self.meta.len()
-    }
-    fn meta(&self, i: usize) -> FrameMeta {
-        self.meta[i]
+    fn frames(&self) -> &[FrameMeta] {
+        &self.meta
     }
     fn read(&mut self, i: usize, buf: &mut Vec<u8>) -> Result<(), FootageError> {
         let what = format!("image {i}");

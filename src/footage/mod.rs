@@ -80,13 +80,18 @@ pub struct FileInfo {
 /// Frames of one file, read one at a time.
 pub trait FrameFile: Send {
     fn info(&self) -> &FileInfo;
-    fn len(&self) -> usize;
+    /// Every frame's id and time. Ids are the position in the file unless the file numbers its
+    /// frames (an image sequence with gaps); times start at 0 for the first frame.
+    fn frames(&self) -> &[FrameMeta];
+    fn len(&self) -> usize {
+        self.frames().len()
+    }
     fn is_empty(&self) -> bool {
         self.len() == 0
     }
-    /// Frame `i`'s id and time. Ids are the position in the file unless the file numbers its
-    /// frames (an image sequence with gaps); times start at 0 for the first frame.
-    fn meta(&self, i: usize) -> FrameMeta;
+    fn meta(&self, i: usize) -> FrameMeta {
+        self.frames()[i]
+    }
     /// Frame `i`'s pixels into `buf` (resized to width × height × bytes per pixel).
     fn read(&mut self, i: usize, buf: &mut Vec<u8>) -> Result<(), FootageError>;
 }

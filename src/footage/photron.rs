@@ -315,11 +315,8 @@ impl FrameFile for Mraw {
     fn info(&self) -> &FileInfo {
         &self.info
     }
-    fn len(&self) -> usize {
-        self.meta.len()
-    }
-    fn meta(&self, i: usize) -> FrameMeta {
-        self.meta[i]
+    fn frames(&self) -> &[FrameMeta] {
+        &self.meta
     }
     fn read(&mut self, i: usize, buf: &mut Vec<u8>) -> Result<(), FootageError> {
         let at = i as u64 * self.frame_bytes_on_disk as u64;

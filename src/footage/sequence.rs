@@ -215,11 +215,8 @@ impl FrameFile for Sequence {
     fn info(&self) -> &FileInfo {
         &self.info
     }
-    fn len(&self) -> usize {
-        self.files.len()
-    }
-    fn meta(&self, i: usize) -> FrameMeta {
-        self.meta[i]
+    fn frames(&self) -> &[FrameMeta] {
+        &self.meta
     }
     fn read(&mut self, i: usize, buf: &mut Vec<u8>) -> Result<(), FootageError> {
         let path = &self.files[i];

@@ -30,7 +30,6 @@ pub struct TiffStack {
     dec: Decoder<BufReader<File>>,
     /// The page the decoder is at.
     at: usize,
-    pages: usize,
     meta: Vec<FrameMeta>,
     info: FileInfo,
 }
@@ -132,7 +131,6 @@ impl TiffStack {
             path: path.to_path_buf(),
             dec,
             at: 0,
-            pages,
             meta: rate_meta(pages, rate),
             info: FileInfo {
                 kind: "tiff",
@@ -163,11 +161,8 @@ impl FrameFile for TiffStack {
     fn info(&self) -> &FileInfo {
         &self.info
     }
-    fn len(&self) -> usize {
-        self.pages
-    }
-    fn meta(&self, i: usize) -> FrameMeta {
-        self.meta[i]
+    fn frames(&self) -> &[FrameMeta] {
+        &self.meta
     }
     fn read(&mut self, i: usize, buf: &mut Vec<u8>) -> Result<(), FootageError> {
         let path = &self.path;

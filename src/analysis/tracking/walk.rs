@@ -23,100 +23,89 @@ pub fn measure_all(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Vec<FrameObs>, Vec<Unmeasured>), AnalysisError> {
     stages::timed(Stage::Measure, || {
-        measure_frames(source, views, cfg, dots, memo, progress)
-    })
-}
-
-fn measure_frames(
-    source: &mut dyn FrameSource,
-    views: &[View],
-    cfg: &Config,
-    dots: &DotMasks,
-    memo: &FitMemo,
-    progress: &mut dyn FnMut(usize, usize),
-) -> Result<(Vec<FrameObs>, Vec<Unmeasured>), AnalysisError> {
-    let mut out = Vec::with_capacity(source.len());
-    let mut tracker = Tracker::new(views.len(), source.source().frame_rate_hz);
-    let n = source.len();
-    // One thread: frame by frame. More: frames are read a chunk at a time (memory stays
-    // bounded whatever the length); while tracking walks through one chunk in order, the other
-    // threads do the next chunk's detection and likely fits (`ahead`), and the tracking thread
-    // joins them when it is done.
-    let threads = crate::analysis::threads();
-    let chunk = if threads > 1 { 8 * threads } else { 1 };
-    if n == 0 {
-        return Ok((out, tracker.unmeasured));
-    }
-    let read = |source: &mut dyn FrameSource,
-                imgs: &mut Vec<GreyImage>,
-                metas: &mut Vec<FrameMeta>,
-                first: usize|
-     -> Result<(), AnalysisError> {
-        imgs.resize_with(chunk.min(n - first), GreyImage::new);
-        metas.clear();
-        for (k, img) in imgs.iter_mut().enumerate() {
-            stages::timed(Stage::Read, || source.read(first + k, img))?;
-            metas.push(source.meta(first + k));
+        let mut out = Vec::with_capacity(source.len());
+        let mut tracker = Tracker::new(views.len(), source.source().frame_rate_hz);
+        let n = source.len();
+        // One thread: frame by frame. More: frames are read a chunk at a time (memory stays
+        // bounded whatever the length); while tracking walks through one chunk in order, the other
+        // threads do the next chunk's detection and likely fits (`ahead`), and the tracking thread
+        // joins them when it is done.
+        let threads = crate::analysis::threads();
+        let chunk = if threads > 1 { 8 * threads } else { 1 };
+        if n == 0 {
+            return Ok((out, tracker.unmeasured));
         }
-        Ok(())
-    };
-    let mut track =
-        |imgs: &[GreyImage], metas: &[FrameMeta], ahead: &[ahead::Ahead], first: usize| {
-            let none = ahead::Ahead::default();
-            for (k, (img, meta)) in imgs.iter().zip(metas).enumerate() {
-                let i = first + k;
-                let cx = FrameCtx {
-                    i,
-                    t: meta.timestamp_ns as f64 * 1e-9,
-                    img,
-                    views,
-                    cfg,
-                    dots,
-                    memo,
-                    ahead: ahead.get(k).unwrap_or(&none),
-                };
-                let spheres = tracker.measure_frame(&cx);
-                out.push(FrameObs {
-                    index: i as u64,
-                    frame_id: meta.frame_id,
-                    time_s: cx.t,
-                    spheres,
-                    position_mm: [None, None],
-                });
-                progress(i + 1, n);
+        let read = |source: &mut dyn FrameSource,
+                    imgs: &mut Vec<GreyImage>,
+                    metas: &mut Vec<FrameMeta>,
+                    first: usize|
+         -> Result<(), AnalysisError> {
+            imgs.resize_with(chunk.min(n - first), GreyImage::new);
+            metas.clear();
+            for (k, img) in imgs.iter_mut().enumerate() {
+                stages::timed(Stage::Read, || source.read(first + k, img))?;
+                metas.push(source.meta(first + k));
             }
+            Ok(())
         };
-    let (mut cur, mut cur_meta) = (Vec::new(), Vec::new());
-    read(source, &mut cur, &mut cur_meta, 0)?;
-    let mut first = 0;
-    if threads <= 1 {
-        loop {
-            track(&cur, &cur_meta, &[], first);
-            first += cur.len();
-            if first >= n {
-                break;
+        let mut track =
+            |imgs: &[GreyImage], metas: &[FrameMeta], ahead: &[ahead::Ahead], first: usize| {
+                let none = ahead::Ahead::default();
+                for (k, (img, meta)) in imgs.iter().zip(metas).enumerate() {
+                    let i = first + k;
+                    let cx = FrameCtx {
+                        i,
+                        t: meta.timestamp_ns as f64 * 1e-9,
+                        img,
+                        views,
+                        cfg,
+                        dots,
+                        memo,
+                        ahead: ahead.get(k).unwrap_or(&none),
+                    };
+                    let spheres = tracker.measure_frame(&cx);
+                    out.push(FrameObs {
+                        index: i as u64,
+                        frame_id: meta.frame_id,
+                        time_s: cx.t,
+                        spheres,
+                        position_mm: [None, None],
+                    });
+                    progress(i + 1, n);
+                }
+            };
+        let (mut cur, mut cur_meta) = (Vec::new(), Vec::new());
+        read(source, &mut cur, &mut cur_meta, 0)?;
+        let mut first = 0;
+        if threads <= 1 {
+            loop {
+                track(&cur, &cur_meta, &[], first);
+                first += cur.len();
+                if first >= n {
+                    break;
+                }
+                read(source, &mut cur, &mut cur_meta, first)?;
             }
-            read(source, &mut cur, &mut cur_meta, first)?;
-        }
-    } else {
-        let mut cur_ahead = ahead::chunk_ahead(&cur, 0, views, cfg, dots, memo, threads, || {});
-        let (mut next, mut next_meta) = (Vec::new(), Vec::new());
-        loop {
-            let next_first = first + cur.len();
-            if next_first >= n {
-                track(&cur, &cur_meta, &cur_ahead, first);
-                break;
+        } else {
+            let mut cur_ahead = ahead::chunk_ahead(&cur, 0, views, cfg, dots, memo, threads, || {});
+            let (mut next, mut next_meta) = (Vec::new(), Vec::new());
+            loop {
+                let next_first = first + cur.len();
+                if next_first >= n {
+                    track(&cur, &cur_meta, &cur_ahead, first);
+                    break;
+                }
+                read(source, &mut next, &mut next_meta, next_first)?;
+                let next_ahead =
+                    ahead::chunk_ahead(&next, next_first, views, cfg, dots, memo, threads, || {
+                        track(&cur, &cur_meta, &cur_ahead, first)
+                    });
+                std::mem::swap(&mut cur, &mut next);
+                std::mem::swap(&mut cur_meta, &mut next_meta);
+                cur_ahead = next_ahead;
+                first = next_first;
             }
-            read(source, &mut next, &mut next_meta, next_first)?;
-            let next_ahead =
-                ahead::chunk_ahead(&next, next_first, views, cfg, dots, memo, threads, || {
-                    track(&cur, &cur_meta, &cur_ahead, first)
-                });
-            std::mem::swap(&mut cur, &mut next);
-            std::mem::swap(&mut cur_meta, &mut next_meta);
-            cur_ahead = next_ahead;
-            first = next_first;
         }
-    }
-    Ok((out, tracker.unmeasured))
+        Ok((out, tracker.unmeasured))
+    })
 }
