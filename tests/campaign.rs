@@ -35,23 +35,25 @@ fn a_sweep_over_both_branches_recovers_glass() {
     assert!((e.value - 0.97).abs() < 0.01, "e {e:?}");
     assert!((mu.value - 0.092).abs() < 0.05 * 0.092, "mu {mu:?}");
     assert!((beta0.value - 0.44).abs() < 0.05, "beta0 {beta0:?}");
-    for (name, est, truth) in [("mu", &mu, 0.092), ("beta0", &beta0, 0.44)] {
+    // A 95 % interval misses the truth one run in twenty by design, and the simulator's
+    // collisions differ run to run (the release follows the relay's wall-clock timing): the true
+    // β0 = 0.44 fell 0.0013 outside [0.4172, 0.4387] in one CI run. So each parameter is checked
+    // at twice its interval's half-width on the side the truth lies (about 3.9σ): that fails when
+    // an interval is wrong (too narrow, or around a biased value), not when a run is unlucky.
+    // The interval's own coverage is tested in campaign::fit (β0 covered in 94 % of 300).
+    for (name, est, truth) in [("e", &e, 0.97), ("mu", &mu, 0.092), ("beta0", &beta0, 0.44)] {
+        let half = if truth < est.value {
+            est.value - est.ci95[0]
+        } else {
+            est.ci95[1] - est.value
+        };
         assert!(
-            est.ci95[0] <= truth && truth <= est.ci95[1],
-            "{name}: {truth} outside {:?}",
+            (est.value - truth).abs() <= 2.0 * half,
+            "{name}: {truth} more than twice the 95 % half-width ({half:.5}) from {:.5} {:?}",
+            est.value,
             est.ci95
         );
     }
-    // e's interval is the mean of 16 collisions measured to about 0.0007 each: ±0.0004. A 95 %
-    // interval misses the truth one run in twenty by design, and the analysis keeps a residual
-    // bias of about +0.00015 in e here (docs/campaigns.md), so the check is at twice the
-    // half-width (3.9σ): it fails when the interval is wrong, not when the run is unlucky.
-    let half = (e.ci95[1] - e.ci95[0]) / 2.0;
-    assert!(
-        (e.value - 0.97).abs() <= 2.0 * half,
-        "e: 0.97 more than twice the 95 % half-width ({half:.5}) from {:.5}",
-        e.value
-    );
     for file in [
         "fit.json",
         "collisions.csv",
