@@ -5,101 +5,14 @@
 //! normal there, and e — physics.md §6. Uncertainties are propagated from the fit covariances
 //! through a numerical Jacobian of everything derived.
 
-use nalgebra::{DMatrix, Matrix2, Matrix3, Vector3};
+use nalgebra::{DMatrix, Matrix3, Vector3};
 
 pub type V3 = Vector3<f64>;
 
 /// Observations of one coordinate of one sphere: (time s, value mm).
 pub type Series = Vec<(f64, f64)>;
 
-/// p(t) = p0 + v·(t − t_ref) + ½·g·(t − t_ref)², with (p0, v) fitted.
-#[derive(Clone, Copy, Debug)]
-pub struct LineFit {
-    pub p0: f64,
-    pub v: f64,
-    pub cov: Matrix2<f64>,
-    pub rms: f64,
-    pub n: usize,
-    pub rejected: usize,
-}
-
-/// Least-squares (p0, v) with robust rejection of frames further than max(4σ, 0.02 mm) from the
-/// trajectory (a mis-fitted circle must not tilt a velocity).
-pub fn fit_line(obs: &[(f64, f64)], t_ref: f64, g: f64) -> Option<LineFit> {
-    let mut keep: Vec<(f64, f64)> = obs
-        .iter()
-        .map(|&(t, x)| (t - t_ref, x - 0.5 * g * (t - t_ref).powi(2)))
-        .collect();
-    let total = keep.len();
-    let mut fit = None;
-    for _ in 0..3 {
-        let n = keep.len();
-        if n < 2 {
-            return None;
-        }
-        let (st, sx, stt, stx) = keep.iter().fold((0.0, 0.0, 0.0, 0.0), |a, &(t, x)| {
-            (a.0 + t, a.1 + x, a.2 + t * t, a.3 + t * x)
-        });
-        let nf = n as f64;
-        let det = nf * stt - st * st;
-        if det.abs() < 1e-18 {
-            return None;
-        }
-        let v = (nf * stx - st * sx) / det;
-        let p0 = (sx - v * st) / nf;
-        let res: Vec<f64> = keep.iter().map(|&(t, x)| x - p0 - v * t).collect();
-        let ss: f64 = res.iter().map(|r| r * r).sum();
-        // Centre errors drift slowly (a marker crossing the limb biases several frames alike);
-        // with lag-one autocorrelation ρ the fit has only n(1−ρ)/(1+ρ) independent frames.
-        let s2 = if n > 2 {
-            ss / (n - 2) as f64 * autocorrelation_factor(&keep, &res)
-        } else {
-            0.0
-        };
-        let inv = Matrix2::new(stt, -st, -st, nf) / det;
-        let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
-        abs.sort_by(f64::total_cmp);
-        let sigma = 1.4826 * abs[abs.len() / 2];
-        let limit = (4.0 * sigma).max(0.02);
-        fit = Some(LineFit {
-            p0,
-            v,
-            cov: inv * s2,
-            rms: (ss / nf).sqrt(),
-            n,
-            rejected: total - n,
-        });
-        let before = keep.len();
-        let kept: Vec<(f64, f64)> = keep
-            .iter()
-            .zip(res.iter())
-            .filter(|(_, r)| r.abs() <= limit)
-            .map(|(p, _)| *p)
-            .collect();
-        if kept.len() == before || kept.len() < 3 {
-            break;
-        }
-        keep = kept;
-    }
-    fit
-}
-
-/// (1 + ρ)/(1 − ρ) for the lag-one autocorrelation ρ > 0 of residuals in time order (1 when
-/// ρ ≤ 0), capped at 10.
-fn autocorrelation_factor(points: &[(f64, f64)], res: &[f64]) -> f64 {
-    if res.len() < 4 {
-        return 1.0;
-    }
-    let mut order: Vec<usize> = (0..res.len()).collect();
-    order.sort_by(|&a, &b| points[a].0.total_cmp(&points[b].0));
-    let r: Vec<f64> = order.iter().map(|&i| res[i]).collect();
-    let var: f64 = r.iter().map(|x| x * x).sum();
-    if var <= 0.0 {
-        return 1.0;
-    }
-    let rho = (r.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / var).clamp(0.0, 0.818);
-    (1.0 + rho) / (1.0 - rho)
-}
+pub use super::line_fit::{fit_line, LineFit};
 
 /// Fits of one sphere on one side of the impact; an axis no view measures is None.
 #[derive(Clone, Copy, Debug)]

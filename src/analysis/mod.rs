@@ -16,6 +16,7 @@ pub mod geometry;
 pub mod image;
 mod impulse;
 pub mod kinematics;
+pub mod line_fit;
 pub mod markers;
 mod phases;
 pub mod report;

@@ -135,6 +135,8 @@ pub struct CaseResult {
     pub z: Vec<f64>,
     pub z_velocity: Vec<f64>,
     pub z_spin: Vec<f64>,
+    /// The components beyond 5σ, named (`"b post velocity y: -1.23 ± 0.04 mm/s (31σ)"`).
+    pub beyond_5_sigma: Vec<String>,
     pub centre_err_px: Vec<f64>,
     /// Per detected marker used (relative to its disc centre, against the truth's): (ρ/R,
     /// |error| px, radial error px, + outwards).
@@ -241,8 +243,21 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
     out.psi1 = scalar(&report.psi1, "psi1");
     out.psi2 = scalar(&report.psi2, "psi2");
     out.beta = scalar(&report.beta, "beta");
-    for (err, sigma) in [out.e, out.psi1, out.psi2, out.beta].into_iter().flatten() {
-        out.z.push(err / sigma);
+    for (name, est) in [
+        ("e", out.e),
+        ("ψ1", out.psi1),
+        ("ψ2", out.psi2),
+        ("β", out.beta),
+    ] {
+        if let Some((err, sigma)) = est {
+            out.z.push(err / sigma);
+            if (err / sigma).abs() > 5.0 {
+                out.beyond_5_sigma.push(format!(
+                    "{name}: error {err:+.4} ± {sigma:.4} ({:+.1}σ)",
+                    err / sigma
+                ));
+            }
+        }
     }
     let mut true_spins = [V3::zeros(); 4];
     for (k, (s, ph)) in PHASES.iter().enumerate() {
@@ -264,17 +279,31 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
         let ev = V3::from(vel.value);
         out.vel_rel
             .push((ev - tv).component_mul(&measured).norm() / tv.component_mul(&measured).norm());
-        for i in (0..3).filter(|&i| vel.uncertainty[i] > 0.0) {
-            out.z.push((ev[i] - tv[i]) / vel.uncertainty[i]);
-            out.z_velocity.push((ev[i] - tv[i]) / vel.uncertainty[i]);
-        }
-        if let Some(w) = spin {
-            out.spin_err.push((V3::from(w.value) - tw).norm());
-            for i in 0..3 {
-                out.z.push((w.value[i] - tw[i]) / w.uncertainty[i]);
-                out.z_spin.push((w.value[i] - tw[i]) / w.uncertainty[i]);
+        let mut note = |what: &str, i: usize, err: f64, sigma: f64, unit: &str| {
+            if (err / sigma).abs() > 5.0 {
+                out.beyond_5_sigma.push(format!(
+                    "{s} {ph} {what} {}: error {err:+.3} ± {sigma:.3} {unit} ({:+.1}σ)",
+                    ["x", "y", "z"][i],
+                    err / sigma
+                ));
             }
+        };
+        let mut z_velocity = Vec::new();
+        for i in (0..3).filter(|&i| vel.uncertainty[i] > 0.0) {
+            note("velocity", i, ev[i] - tv[i], vel.uncertainty[i], "mm/s");
+            z_velocity.push((ev[i] - tv[i]) / vel.uncertainty[i]);
         }
+        let mut z_spin = Vec::new();
+        if let Some(w) = spin {
+            for i in 0..3 {
+                note("spin", i, w.value[i] - tw[i], w.uncertainty[i], "rad/s");
+                z_spin.push((w.value[i] - tw[i]) / w.uncertainty[i]);
+            }
+            out.spin_err.push((V3::from(w.value) - tw).norm());
+        }
+        out.z.extend(z_velocity.iter().chain(&z_spin));
+        out.z_velocity.extend(z_velocity);
+        out.z_spin.extend(z_spin);
     }
     // Whether, by the truth, both spheres are out of their tubes and their discs lie wholly
     // inside view `view`'s region with a gap of at least a pixel between them: where the goals ask for both spheres measured, and for

@@ -288,6 +288,11 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
         "beyond 5σ: {beyond5} of {} reported components (largest |error|/σ {worst:.1})",
         z.len()
     );
+    for (c, r) in results {
+        for line in &r.beyond_5_sigma {
+            let _ = writeln!(s, "  seed {} ({}): {line}", c.seed, r.look_family);
+        }
+    }
     s.push_str(&by_look(results));
     let (at, rt, nf) = ok.iter().fold((0.0, 0.0, 0usize), |a, r| {
         (
