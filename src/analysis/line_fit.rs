@@ -110,8 +110,9 @@ fn drift_covariance(points: &[(f64, f64)]) -> Matrix2<f64> {
     Matrix2::new(t_mean * t_mean, -t_mean, -t_mean, 1.0) * beta2
 }
 
-/// Least-squares slope of (t, x) and its variance from the residuals.
-fn slope(points: &[(f64, f64)]) -> Option<(f64, f64)> {
+/// Least-squares slope of (t, x) and its variance from the residuals; None below three points
+/// or without spread in t.
+pub(crate) fn slope(points: &[(f64, f64)]) -> Option<(f64, f64)> {
     let n = points.len() as f64;
     let t_mean = points.iter().map(|p| p.0).sum::<f64>() / n;
     let x_mean = points.iter().map(|p| p.1).sum::<f64>() / n;

@@ -340,29 +340,11 @@ pub fn fit(collisions: &mut [Collision]) -> CampaignFit {
 
 /// Least-squares slope with its standard error.
 fn line_slope(xs: &[f64], ys: &[f64]) -> Option<Estimate<f64>> {
-    let n = xs.len() as f64;
-    if xs.len() < 3 {
-        return None;
-    }
-    let (mx, my) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
-    let sxx: f64 = xs.iter().map(|x| (x - mx).powi(2)).sum();
-    if sxx <= 0.0 {
-        return None;
-    }
-    let slope = xs
-        .iter()
-        .zip(ys)
-        .map(|(x, y)| (x - mx) * (y - my))
-        .sum::<f64>()
-        / sxx;
-    let ss: f64 = xs
-        .iter()
-        .zip(ys)
-        .map(|(x, y)| (y - my - slope * (x - mx)).powi(2))
-        .sum();
+    let points: Vec<(f64, f64)> = xs.iter().copied().zip(ys.iter().copied()).collect();
+    let (slope, variance) = crate::analysis::line_fit::slope(&points)?;
     Some(Estimate {
         value: slope,
-        uncertainty: (ss / (n - 2.0) / sxx).sqrt(),
+        uncertainty: variance.sqrt(),
     })
 }
 
