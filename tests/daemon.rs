@@ -236,10 +236,13 @@ fn the_rig_is_opened_once_and_kept_between_experiments() {
 
 #[test]
 fn a_disconnected_camera_is_reopened_for_the_next_experiment() {
-    // The simulated camera drops off the bus after 320 frames: the first experiment (400
-    // frames) loses it; a camera kept open would fail every later one.
-    let d = Daemon::start(None, "[sim]\ndisconnect_after_frames = 320\n");
-    let first = d.start_experiment(r#"{"frames": 400}"#);
+    // The simulated camera drops off the bus after 800 frames: the first experiment (1000
+    // frames) loses it; a camera kept open would fail every later one. The count includes the
+    // frames streamed while arming and during the preflight, so the second experiment (280
+    // frames) leaves half a second for those (a slow preflight on a busy machine once took a
+    // 280-frame experiment past a limit of 320).
+    let d = Daemon::start(None, "[sim]\ndisconnect_after_frames = 800\n");
+    let first = d.start_experiment(r#"{"frames": 1000}"#);
     let failed = d.wait_done(&first);
     assert_eq!(failed["status"], "failed", "{failed}");
     let status = d.json("/api/status");
