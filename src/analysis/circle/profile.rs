@@ -257,9 +257,8 @@ const SUBPIXEL_OFFSETS: [f64; 3] = [-1.0 / 3.0, 0.0, 1.0 / 3.0];
 /// Pixels whose centre lies within this of an edge are averaged over in 3 × 3 parts
 /// (`SUBPIXEL_OFFSETS`), px; the rest of the band as one box. The box average along the edge's
 /// normal matches a square's spread across an edge but not its shape (a step across a side, a
-/// ramp across a diagonal), which matters where the edge crosses the pixel: the whole pixel as
-/// one box there left noise-free centres with masked rim dots scattered 0.0025 px instead of
-/// 0.0023.
+/// ramp across a diagonal), which matters where the edge crosses the pixel: 2 × 2 parts there
+/// left noise-free centres with masked rim dots scattered 0.0025 px instead of 0.0023.
 const EDGE_ZONE_PX: f64 = 1.0;
 
 /// How a ring pixel's model is averaged over its area in the final round.
@@ -416,9 +415,9 @@ where
             // The shading is averaged over the box too, exactly: over the radii ρ from ρ₁ to ρ₀
             // it covers, g(ρ) = λ·ρ + n_z(ρ) with λ = c·(cos θ, sin θ) the lamp's slope along
             // this radius, and only where g > 0 (the lit side of the terminator) — see
-            // `mean_lit`. A point sample of max(0, g) and of √ at the limb gave the fit's cost a
-            // kink at every sample a terminator or the limb crossed, and side-lit discs
-            // zig-zagged to their minimum.
+            // `mean_lit`. A point sample of max(0, g) and of √ at the limb is not the box's
+            // mean, and has kinks where the mean has none. (Counted on the independent
+            // renders, this part did not itself cut the iterations; the step's box did.)
             let rho0 = ((r - y0) / r).clamp(-1.0, 1.0);
             let rho1 = ((r - y1) / r).clamp(-1.0, 1.0);
             let (c1, c2) = (p[o + 6], p[o + 7]);
