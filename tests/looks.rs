@@ -75,14 +75,17 @@ fn spheres_that_pass_in_front_of_each_other_keep_their_names() {
     .unwrap();
     let report = common::run_json(t.path(), &["run", "--config", "z.toml", "--json"]);
     let truth = common::read_json(&common::first_session(t.path()).join("truth.json"));
-    for key in ["e", "psi1", "psi2"] {
+    // Names swapped after the impact would put e far off (the post-impact velocities exchanged);
+    // ψ1 here is 3.5, with σ 0.02–0.04 from run to run (the simulated release follows the
+    // relay's wall-clock timing), so its absolute bound is wider: 0.05 failed at 2.4σ in CI.
+    for (key, bound) in [("e", 0.05), ("psi1", 0.15), ("psi2", 0.15)] {
         let v = report[key]["value"]
             .as_f64()
             .unwrap_or_else(|| panic!("{key} measured"));
         let s = report[key]["uncertainty"].as_f64().unwrap();
         let tv = truth[key].as_f64().unwrap();
         assert!(
-            (v - tv).abs() < 5.0 * s && (v - tv).abs() < 0.05,
+            (v - tv).abs() < 5.0 * s && (v - tv).abs() < bound,
             "{key}: {v:.4} ± {s:.4}, truth {tv:.4}"
         );
     }
