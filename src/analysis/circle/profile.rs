@@ -814,3 +814,52 @@ where
     }
     Some(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{mean_lit, softplus};
+
+    /// The box averages' derivatives, on which the fit's steps rest, against central
+    /// differences: through the limb, across the terminator, and deep inside.
+    #[test]
+    fn box_averages_have_the_derivatives_they_claim() {
+        let h = 1e-6;
+        for (x, s) in [(-0.4, 0.05), (0.0, 0.3), (0.2, 0.05), (1.5, 0.8)] {
+            let (l, sp, dsp_ds) = softplus(x, s);
+            let dx = (softplus(x + h, s).1 - softplus(x - h, s).1) / (2.0 * h);
+            let ds = (softplus(x, s + h).1 - softplus(x, s - h).1) / (2.0 * h);
+            assert!((dx - l).abs() < 1e-6, "x {x}, s {s}: sp' {dx} vs l {l}");
+            assert!(
+                (ds - dsp_ds).abs() < 1e-6,
+                "x {x}, s {s}: ∂sp/∂s {ds} vs {dsp_ds}"
+            );
+            assert!(sp >= x.max(0.0));
+        }
+        // (ρ₀, ρ₁, λ): a box reaching the limb, one across a side lamp's terminator
+        // (ρ* = 1/√1.36 ≈ 0.857), one inside lit from the front, one wholly past the terminator.
+        for (rho0, rho1, lamp) in [
+            (0.999, 0.95, 0.0),
+            (0.9, 0.8, -0.6),
+            (0.6, 0.5, 0.3),
+            (0.99, 0.95, -2.0),
+        ] {
+            let m = mean_lit(rho0, rho1, lamp);
+            let num = |f: &dyn Fn(f64) -> f64, v: f64| (f(v + h) - f(v - h)) / (2.0 * h);
+            let d0 = num(&|r| mean_lit(r, rho1, lamp).mean, rho0);
+            let d1 = num(&|r| mean_lit(rho0, r, lamp).mean, rho1);
+            let dl = num(&|l| mean_lit(rho0, rho1, l).mean, lamp);
+            let ok = |a: f64, b: f64| (a - b).abs() < 1e-4 * (1.0 + b.abs());
+            assert!(
+                ok(d0, m.d_rho0) && ok(d1, m.d_rho1) && ok(dl, m.d_lamp),
+                "ρ₀ {rho0}, ρ₁ {rho1}, λ {lamp}: numeric ({d0}, {d1}, {dl}) vs ({}, {}, {})",
+                m.d_rho0,
+                m.d_rho1,
+                m.d_lamp
+            );
+            // The mean lies within the shading's range over the box.
+            assert!(m.mean >= 0.0 && m.mean <= 1.0 + lamp.abs());
+        }
+        // Past the terminator nothing is lit.
+        assert_eq!(mean_lit(0.99, 0.95, -2.0).mean, 0.0);
+    }
+}
