@@ -68,6 +68,20 @@ pub fn find_blobs(
         return Vec::new();
     }
     let threshold = (lv.background + threshold_fraction * contrast) as f32;
+    // Where the subtracted backdrop stood out from the ground by more than the threshold's
+    // height (a tube end, a ruler), a sphere in front of it hides it and comes out as its
+    // shading less the backdrop, as likely below the ground as above: there a pixel is
+    // foreground by how far it is from the ground either way.
+    let rise = threshold - lv.background as f32;
+    let bg = lv.background as f32;
+    let level = |u: usize, v: usize| -> f32 {
+        let val = img.at(u, v);
+        if img.ground_at(u, v).abs() > rise {
+            bg + (val - bg).abs()
+        } else {
+            val
+        }
+    };
     let [x0, y0, w, h] = view.region.map(|x| x as usize);
     let (x1, y1) = ((x0 + w).min(img.width), (y0 + h).min(img.height));
     let (rw, rh) = (x1 - x0, y1 - y0);
@@ -77,7 +91,7 @@ pub fn find_blobs(
     let mut stack = Vec::new();
     for sv in 0..rh {
         for su in 0..rw {
-            if seen[sv * rw + su] || img.at(x0 + su, y0 + sv) < threshold {
+            if seen[sv * rw + su] || level(x0 + su, y0 + sv) < threshold {
                 continue;
             }
             seen[sv * rw + su] = true;
@@ -85,7 +99,7 @@ pub fn find_blobs(
             let (mut area, mut sw, mut su_acc, mut sv_acc, mut clipped) =
                 (0usize, 0.0, 0.0, 0.0, false);
             while let Some((cu, cv)) = stack.pop() {
-                let val = img.at(x0 + cu, y0 + cv) as f64 - lv.background;
+                let val = level(x0 + cu, y0 + cv) as f64 - lv.background;
                 area += 1;
                 sw += val;
                 su_acc += val * (x0 + cu) as f64;
@@ -95,7 +109,7 @@ pub fn find_blobs(
                 }
                 let mut visit = |nu: usize, nv: usize| {
                     let k = nv * rw + nu;
-                    if !seen[k] && img.at(x0 + nu, y0 + nv) >= threshold {
+                    if !seen[k] && level(x0 + nu, y0 + nv) >= threshold {
                         seen[k] = true;
                         stack.push((nu, nv));
                     }

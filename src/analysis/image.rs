@@ -1,10 +1,19 @@
 //! A greyscale frame as floating-point grey levels on the 8-bit scale (16-bit frames are divided
-//! by 256), with bilinear sampling at sub-pixel positions (pixel centres at integers).
+//! by 256), with bilinear sampling at sub-pixel positions (pixel centres at integers), and what
+//! the normalisation took out of each pixel (`ground`).
+
+use std::sync::Arc;
 
 pub struct GreyImage {
     pub width: usize,
     pub height: usize,
     pub data: Vec<f32>,
+    /// Per pixel (row-major, the frame's size), how far the static backdrop that the
+    /// normalisation subtracted stands above the level it put in its place (`backdrop`): 0 on a
+    /// flat ground, large on a tube end or a ruler. A sphere hides what is behind it, so where
+    /// it covers a pixel the normalised frame holds its shading minus this; None where nothing
+    /// was subtracted (all zero).
+    pub ground: Option<Arc<[f32]>>,
 }
 
 impl GreyImage {
@@ -13,6 +22,7 @@ impl GreyImage {
             width: 0,
             height: 0,
             data: Vec::new(),
+            ground: None,
         }
     }
 
@@ -20,6 +30,7 @@ impl GreyImage {
     pub fn load(&mut self, raw: &[u8], width: usize, height: usize, bytes_per_pixel: usize) {
         self.width = width;
         self.height = height;
+        self.ground = None;
         self.data.clear();
         if bytes_per_pixel == 1 {
             self.data.extend(raw.iter().map(|&b| b as f32));
@@ -34,6 +45,40 @@ impl GreyImage {
     #[inline]
     pub fn at(&self, u: usize, v: usize) -> f32 {
         self.data[v * self.width + u]
+    }
+
+    /// `ground` at pixel (u, v): what stands behind a sphere there, above the ground's level.
+    #[inline]
+    pub fn ground_at(&self, u: usize, v: usize) -> f32 {
+        self.ground
+            .as_ref()
+            .and_then(|g| g.get(v * self.width + u).copied())
+            .unwrap_or(0.0)
+    }
+
+    /// The grey level at pixel (u, v) as a sphere that covers it shows it: the normalised level
+    /// plus the backdrop it hides (`ground`), which the normalisation subtracted though the
+    /// sphere was in front of it. Inside a disc this is the sphere's own shading on a flat
+    /// ground, whatever stands behind.
+    #[inline]
+    pub fn sphere_at(&self, u: usize, v: usize) -> f32 {
+        self.at(u, v) + self.ground_at(u, v)
+    }
+
+    /// The largest |`ground`| over the pixels a bilinear sample at (u, v) reads; 0 outside the
+    /// image or without a ground.
+    pub fn ground_near(&self, u: f64, v: f64) -> f64 {
+        if self.ground.is_none() || !(u >= 0.0 && v >= 0.0) {
+            return 0.0;
+        }
+        let (u0, v0) = (u.floor() as usize, v.floor() as usize);
+        let mut most = 0f32;
+        for (du, dv) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            if u0 + du < self.width && v0 + dv < self.height {
+                most = most.max(self.ground_at(u0 + du, v0 + dv).abs());
+            }
+        }
+        most as f64
     }
 
     /// Bilinear interpolation; None outside the image.

@@ -66,7 +66,7 @@ pub fn find(
                 continue;
             }
             let e = expected(u as f64, v as f64);
-            let d = e - img.at(u, v) as f64;
+            let d = e - img.sphere_at(u, v) as f64;
             if d > (0.25 * e).max(5.0 * noise_sigma) {
                 dark[(v - v0) * w + (u - u0)] = d;
             }
@@ -113,7 +113,7 @@ pub fn find(
         }
         let darkest = members
             .iter()
-            .map(|&k| img.at(u0 + k % w, v0 + k / w) as f64)
+            .map(|&k| img.sphere_at(u0 + k % w, v0 + k / w) as f64)
             .fold(f64::INFINITY, f64::min);
         dots.push(([su / sw, sv / sw], darkest));
     }
@@ -157,7 +157,7 @@ pub fn find(
                     if e - paint <= 0.0 {
                         continue;
                     }
-                    let d = (e - img.at(u, v) as f64) / (e - paint);
+                    let d = (e - img.sphere_at(u, v) as f64) / (e - paint);
                     cw += d;
                     cu_acc += d * fu;
                     cv_acc += d * fv;
@@ -306,7 +306,10 @@ impl Shading {
             for u in u0..=u1 {
                 let (fu, fv) = (u as f64, v as f64);
                 if (fu - centre[0]).hypot(fv - centre[1]) < within {
-                    pix.push((Self::basis_of(centre, radius, fu, fv), img.at(u, v) as f64));
+                    pix.push((
+                        Self::basis_of(centre, radius, fu, fv),
+                        img.sphere_at(u, v) as f64,
+                    ));
                 }
             }
         }

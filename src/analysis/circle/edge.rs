@@ -152,15 +152,22 @@ pub fn robust_fit(points: &[[f64; 2]], oversampling: f64) -> Option<CircleFit> {
 /// the limb, passing through the rim as the sphere spins, would otherwise move the edge inwards
 /// on a few rays and bias the centre by a slowly varying few hundredths of a pixel — errors that
 /// do not average out along a trajectory.
+///
+/// Nor is a ray whose samples up to its crossing read a static backdrop standing out from the
+/// ground by more than `dip` (`GreyImage::ground`: a tube end, a ruler): the sphere hides it,
+/// so there the normalised edge is the sphere's shading less the backdrop, and its crossing
+/// lies anywhere. The grey-level fit models that; the edge points are only its start.
+/// Returns the points and the number of rays left out for such a backdrop.
 pub fn edge_points(
     img: &GreyImage,
     view: &View,
     centre: [f64; 2],
     radius_px: f64,
     ray_levels: &[(f64, f64)],
-) -> Vec<[f64; 2]> {
+) -> (Vec<[f64; 2]>, usize) {
     let rays = ray_levels.len();
     let mut pts = Vec::with_capacity(rays);
+    let mut hidden = 0;
     let step = 0.2;
     let r_start = (radius_px - 3.0).max(radius_px * 0.4);
     let r_end = radius_px + 3.0;
@@ -177,6 +184,10 @@ pub fn edge_points(
                 break;
             }
             let Some(val) = img.sample(u, v) else { break };
+            if img.ground_near(u, v) > dip {
+                hidden += 1;
+                break;
+            }
             if val >= level {
                 if val > lowest_inside + dip {
                     break;
@@ -202,7 +213,7 @@ pub fn edge_points(
             r += step;
         }
     }
-    pts
+    (pts, hidden)
 }
 
 /// How much of a circle its edge points go round: the number of 10° sectors (of 36) that hold
@@ -216,6 +227,11 @@ pub fn sectors_covered(points: &[[f64; 2]], centre: [f64; 2]) -> usize {
     }
     sectors.iter().filter(|s| **s).count()
 }
+
+/// Fewer 10° sectors than this (of 36) holding edge points, where rays were left out over a
+/// static backdrop: the edge-point fit holds the radius at the known one (half a circle and a
+/// little more fixes both; less trades the radius against the centre across the chord).
+const PARTIAL_ARC_SECTORS: usize = 20;
 
 /// Edge points closer than this to the other sphere's disc are not used: in the narrow gap
 /// between two spheres the background never reaches its level (both rims' blur and the motion
@@ -237,6 +253,19 @@ pub fn fit_edges(
     background: f64,
     other: Option<([f64; 2], f64)>,
 ) -> Option<CircleFit> {
+    fit_edges_in_view(img, view, rough, radius_px, background, other).map(|(f, _)| f)
+}
+
+/// `fit_edges`, and whether a static backdrop hid part of the edge (rays left out over it):
+/// then the fit is only a start, which the grey-level fit must confirm.
+pub fn fit_edges_in_view(
+    img: &GreyImage,
+    view: &View,
+    rough: [f64; 2],
+    radius_px: f64,
+    background: f64,
+    other: Option<([f64; 2], f64)>,
+) -> Option<(CircleFit, bool)> {
     let rays = ((std::f64::consts::TAU * radius_px * 1.5).round() as usize).clamp(24, 720);
     let oversampling = rays as f64 / (std::f64::consts::TAU * radius_px);
     let mut centre = rough;
@@ -279,16 +308,42 @@ pub fn fit_edges(
                 )
             })
             .collect();
-        let mut pts = edge_points(img, view, centre, radius_px, &ray_levels);
+        let (mut pts, hidden) = edge_points(img, view, centre, radius_px, &ray_levels);
         if let Some((oc, or)) = other {
             pts.retain(|p| (p[0] - oc[0]).hypot(p[1] - oc[1]) > or + NEIGHBOUR_MARGIN_PX);
         }
-        if pts.len() < rays / 3 {
+        // Rays over a static backdrop (a tube end the sphere is leaving, a ruler) tell nothing
+        // here: a third of the others must give a point.
+        if pts.len() < (rays - hidden) / 3 || pts.len() < 8 {
+            // Most of the edge in front of a backdrop (a sphere leaving its tube): the rough
+            // centre at the known radius is all the grey-level fit gets to start from.
+            if fit.is_none() && 2 * hidden > rays {
+                return Some((
+                    CircleFit {
+                        centre,
+                        radius: radius_px,
+                        centre_sigma: [f64::INFINITY; 2],
+                        radius_sigma: f64::INFINITY,
+                        rms_px: f64::INFINITY,
+                        points_used: pts.len(),
+                        points_total: pts.len(),
+                        arc_sectors: sectors_covered(&pts, centre),
+                        grey_levels: false,
+                    },
+                    true,
+                ));
+            }
             return fit;
         }
-        let f = robust_fit(&pts, oversampling)?;
+        // Where the backdrop hid much of the edge, the arc left may not fix the radius: the
+        // centre at the known radius is the grey-level fit's start.
+        let f = if hidden > 0 && sectors_covered(&pts, centre) < PARTIAL_ARC_SECTORS {
+            fit_fixed_radius(&pts, centre, radius_px, oversampling)?
+        } else {
+            robust_fit(&pts, oversampling)?
+        };
         centre = f.centre;
-        fit = Some(f);
+        fit = Some((f, hidden > 0));
     }
     fit
 }

@@ -44,7 +44,9 @@ pub struct CircleFit {
 
 /// Refines a rough centre to a sub-pixel circle fit: edge points first (`fit_edges`), then the
 /// grey levels near the edge (`profile_fit`) where it settles. `other` is the other sphere's
-/// disc (centre, radius px) in the same view, when it is there.
+/// disc (centre, radius px) in the same view, when it is there. Where a static backdrop hid
+/// part of the edge, only the grey-level fit (which models what the disc hides) measures:
+/// without it, None.
 pub fn refine(
     img: &GreyImage,
     view: &View,
@@ -54,8 +56,12 @@ pub fn refine(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
 ) -> Option<CircleFit> {
-    let f = fit_edges(img, view, rough, radius_px, background, other)?;
-    Some(profile_fit(img, view, &f, background, other, dots).unwrap_or(f))
+    let (f, hidden) = fit_edges_in_view(img, view, rough, radius_px, background, other)?;
+    match profile_fit(img, view, &f, background, other, dots) {
+        Some(p) => Some(p),
+        None if hidden => None,
+        None => Some(f),
+    }
 }
 
 /// Where a marker is expected on a sphere's rim in one frame, px: the grey-level fit leaves out

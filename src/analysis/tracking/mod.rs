@@ -63,6 +63,7 @@ fn world_x(view: &View, px: [f64; 2]) -> f64 {
 pub type DotMasks = HashMap<(usize, usize), Vec<DotMask>>;
 
 pub use walk::measure_all;
+mod held;
 
 /// One frame being measured: its index and time, its pixels, and what it is measured with.
 struct FrameCtx<'a> {
@@ -110,6 +111,12 @@ type Spheres = [Vec<Option<Measurement>>; 2];
 /// primary view's recent x of each, and what could not be measured.
 struct Tracker {
     memory: Vec<ViewMemory>,
+    /// Per view, a run of frames followed by continuity and not yet named (`held`).
+    held: Vec<Option<held::Run>>,
+    /// Per view, whether this frame's measurements there belong to its held run.
+    holding_now: Vec<bool>,
+    /// Held runs named since: (frame index, view index, [a, b]), for the walk to put in place.
+    released: held::Released,
     /// Primary-view world x of each sphere: (time s, x mm), most recent last.
     x_history: [Vec<(f64, f64)>; 2],
     unmeasured: Vec<Unmeasured>,
@@ -122,6 +129,9 @@ impl Tracker {
     fn new(views: usize, frame_rate_hz: f64) -> Tracker {
         Tracker {
             memory: vec![ViewMemory::default(); views],
+            held: (0..views).map(|_| None).collect(),
+            holding_now: vec![false; views],
+            released: Vec::new(),
             x_history: [Vec::new(), Vec::new()],
             unmeasured: Vec::new(),
             // Free flight is a straight line in x and nearly one in the image over a few frames.
@@ -141,12 +151,56 @@ impl Tracker {
         for (vi, view) in cx.views.iter().enumerate() {
             self.measure_view(cx, vi, view, &mut spheres, &mut deferred);
         }
+        // Held measurements name nothing yet: out of the frame while the views are checked
+        // against each other, in it while the memory learns where the spheres went.
+        let mut provisional = Vec::new();
+        for (vi, holding) in self.holding_now.iter_mut().enumerate() {
+            if std::mem::take(holding) {
+                provisional.push((vi, [spheres[0][vi].take(), spheres[1][vi].take()]));
+            }
+        }
         if let Some((blob, lv)) = deferred.take() {
             self.label_by_secondary_x(cx, &blob, &lv, &mut spheres);
         }
         self.check_primary_against_secondary(cx, &mut spheres);
+        for (vi, [a, b]) in &mut provisional {
+            spheres[0][*vi] = a.take();
+            spheres[1][*vi] = b.take();
+        }
         self.remember(cx, &spheres);
+        for (vi, _) in provisional {
+            let name = cx.views[vi].kind.name();
+            match (
+                spheres[0][vi].take(),
+                spheres[1][vi].take(),
+                self.held[vi].as_mut(),
+            ) {
+                (Some(a), Some(b), Some(run)) => run.push((cx.i, [a, b])),
+                _ => {
+                    if let Some(run) = self.held[vi].take() {
+                        held::drop_run(run, name, &mut self.unmeasured);
+                    }
+                    self.unmeasured.push(Unmeasured {
+                        frame: cx.i as u64,
+                        view: name.into(),
+                        reason: held::UNNAMED.into(),
+                    });
+                }
+            }
+        }
         spheres
+    }
+
+    /// After the last frame: a run still held is dropped; the named runs, and the reasons
+    /// for what was not measured in frame order.
+    fn finish(mut self, views: &[View]) -> (held::Released, Vec<Unmeasured>) {
+        for (vi, run) in self.held.iter_mut().enumerate() {
+            if let Some(run) = run.take() {
+                held::drop_run(run, views[vi].kind.name(), &mut self.unmeasured);
+            }
+        }
+        self.unmeasured.sort_by_key(|u| u.frame);
+        (self.released, self.unmeasured)
     }
 
     /// Both views measure world x. Where the primary view labelled a and b without continuity
@@ -265,6 +319,12 @@ impl Tracker {
         // can stay one behind the other in the mirror to the end of the recording): each
         // sphere's visible arc is fitted on its own, and labelled by the x the primary view
         // measured, or by where this view last saw each.
+        // A held run goes on only while this view sees the two apart.
+        if blobs.len() != 2 || blobs.iter().any(|b| b.merged) {
+            if let Some(run) = self.held[vi].take() {
+                held::drop_run(run, view.kind.name(), &mut self.unmeasured);
+            }
+        }
         if vi > 0
             && self.measure_split_silhouette(
                 cx, vi, view, &lv, dots, &blobs, primary_x, contact_mm, r_mean, spheres,
@@ -282,7 +342,7 @@ impl Tracker {
         } else {
             None
         };
-        let assigned = match primary_x {
+        let mut assigned = match primary_x {
             _ if by_track.is_some() => by_track.unwrap_or([None, None]),
             // Closer in x than a diameter, one may hide the other in this view: a single
             // blob is then both, partly, and neither centre can be trusted.
@@ -302,6 +362,17 @@ impl Tracker {
             // A secondary view with nothing from the primary and no continuity of its own
             // cannot tell a from b once they have been seen together: its projection of the
             // contact normal does not keep its sign through a grazing pass.
+            // Two apart: followed by continuity from here, held until the primary names them
+            // (`held`).
+            [None, None]
+                if vi > 0
+                    && self.memory[vi].a_to_b.is_some()
+                    && blobs.len() == 2
+                    && !blobs.iter().any(|b| b.merged) =>
+            {
+                self.held[vi] = Some(Vec::new());
+                assign(&blobs, view, &self.memory[vi], cx.t, self.max_gap_s)
+            }
             [None, None] if vi > 0 && self.memory[vi].a_to_b.is_some() => {
                 if !blobs.is_empty() {
                     self.unmeasured.push(Unmeasured {
@@ -317,6 +388,27 @@ impl Tracker {
             [None, None] => assign(&blobs, view, &self.memory[vi], cx.t, self.max_gap_s),
             x => assign_by_x(&blobs, view, x, contact_mm),
         };
+        // A held run is named by the first frame whose primary x names a sphere; until then
+        // this frame's measurements are held too.
+        if self.held[vi].is_some() {
+            let by_x = if primary_x == [None, None] {
+                [None, None]
+            } else {
+                assign_by_x(&blobs, view, primary_x, contact_mm)
+            };
+            match held::named_by_x(assigned, by_x) {
+                Some(swap) => {
+                    if let Some(run) = self.held[vi].take() {
+                        held::release(run, vi, swap, &mut self.released);
+                    }
+                    if swap {
+                        held::swap_memory(&mut self.memory[vi]);
+                        assigned.swap(0, 1);
+                    }
+                }
+                None => self.holding_now[vi] = true,
+            }
+        }
         // Two spheres touching in the primary view are one silhouette, in the frames that
         // fix the contact best. Where this view saw both in the last frames, each is fitted
         // from where they were heading, with the other's side left out (then both together,

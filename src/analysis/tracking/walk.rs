@@ -33,7 +33,7 @@ pub fn measure_all(
         let threads = crate::analysis::threads();
         let chunk = if threads > 1 { 8 * threads } else { 1 };
         if n == 0 {
-            return Ok((out, tracker.unmeasured));
+            return Ok((out, tracker.finish(views).1));
         }
         let read = |source: &mut dyn FrameSource,
                     imgs: &mut Vec<GreyImage>,
@@ -106,6 +106,14 @@ pub fn measure_all(
                 first = next_first;
             }
         }
-        Ok((out, tracker.unmeasured))
+        // Held runs named after their frames were put out (`held`).
+        let (released, unmeasured) = tracker.finish(views);
+        for (i, vi, [a, b]) in released {
+            if let Some(f) = out.get_mut(i) {
+                f.spheres[0][vi] = Some(a);
+                f.spheres[1][vi] = Some(b);
+            }
+        }
+        Ok((out, unmeasured))
     })
 }
