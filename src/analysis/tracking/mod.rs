@@ -208,10 +208,12 @@ impl Tracker {
     /// secondary view carried both through those frames, the secondary is right: if swapping
     /// the primary's labels makes the two views' x agree several times better, they are
     /// swapped. Spheres that graze past each other in one view were otherwise labelled by the
-    /// side each was on before, and the trajectories came out crossed.
+    /// side each was on before, and the trajectories came out crossed. And in any frame, one
+    /// circle in the primary view where the secondary sees both closer in x than they are wide
+    /// is dropped (it may hold both: an independent render's frame at contact put it 6.6 px
+    /// from either sphere).
     fn check_primary_against_secondary(&mut self, cx: &FrameCtx, spheres: &mut Spheres) {
-        if cx.views.len() < 2 || self.memory[0].both_in_previous || !self.memory[1].both_in_previous
-        {
+        if cx.views.len() < 2 {
             return;
         }
         let x = |vi: usize, s: usize| {
@@ -249,6 +251,9 @@ impl Tracker {
                     }
                 }
             }
+            return;
+        }
+        if self.memory[0].both_in_previous || !self.memory[1].both_in_previous {
             return;
         }
         let (Some(pa), Some(pb)) = (x(0, 0), x(0, 1)) else {
