@@ -90,3 +90,74 @@ fn spheres_that_pass_in_front_of_each_other_keep_their_names() {
         );
     }
 }
+
+/// Tube ends and a ruler in view (the cluttered family): the spheres leave their tubes in front
+/// of the tube ends and cross the ruler, hiding what stands behind them. Where, by the truth,
+/// both are out of their tubes, wholly inside a view and apart, both are measured and their
+/// centres hold. Before a disc's fit knew what it hides, this experiment gave centre RMS 0.083
+/// px and one centre 1.18 px off (0.020 and 0.108 after; 99.3 % of such frames measured).
+#[test]
+fn spheres_in_front_of_tube_ends_and_a_ruler_are_measured_where_they_are() {
+    let t = tempfile::tempdir().unwrap();
+    let (report, truth) = run(t.path(), "cluttered", 4);
+    // The default config's views: [x, y, width, height].
+    let regions = [
+        ("direct", [0.0, 0.0, 240.0, 96.0]),
+        ("mirror", [0.0, 96.0, 240.0, 96.0]),
+    ];
+    let exit_s = truth["tube_exit_time_s"]
+        .as_f64()
+        .unwrap_or(f64::NEG_INFINITY);
+    let tracks = report["tracks"].as_array().expect("tracks");
+    let (mut clear, mut both, mut errors) = (0, 0, Vec::new());
+    for f in truth["frames"].as_array().expect("truth frames") {
+        if f["time_s"].as_f64().unwrap() < exit_s {
+            continue;
+        }
+        let track = tracks.iter().find(|t| t["frame_id"] == f["frame_id"]);
+        for (view, [rx, ry, rw, rh]) in regions {
+            let disc = |s: &str| {
+                let v = &f["spheres"][s]["views"][view];
+                let c = &v["centre_px"];
+                [
+                    c[0].as_f64().unwrap(),
+                    c[1].as_f64().unwrap(),
+                    v["diameter_px"].as_f64().unwrap() / 2.0,
+                ]
+            };
+            let (a, b) = (disc("a"), disc("b"));
+            let inside = |d: [f64; 3]| {
+                d[0] - d[2] > rx + 1.0
+                    && d[0] + d[2] < rx + rw - 2.0
+                    && d[1] - d[2] > ry + 1.0
+                    && d[1] + d[2] < ry + rh - 2.0
+            };
+            if !(inside(a) && inside(b) && (a[0] - b[0]).hypot(a[1] - b[1]) > a[2] + b[2] + 1.0) {
+                continue;
+            }
+            clear += 1;
+            let got = |s: &str| {
+                let c = &track?[s][view]["centre_px"];
+                Some([c[0].as_f64()?, c[1].as_f64()?])
+            };
+            if got("a").is_some() && got("b").is_some() {
+                both += 1;
+            }
+            for (s, d) in [("a", a), ("b", b)] {
+                if let Some(c) = got(s) {
+                    errors.push((c[0] - d[0]).hypot(c[1] - d[1]));
+                }
+            }
+        }
+    }
+    assert!(
+        clear > 100,
+        "{clear} frames with both spheres clear of the tubes and apart"
+    );
+    let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    let worst = errors.iter().cloned().fold(0.0, f64::max);
+    assert!(
+        both as f64 >= 0.98 * clear as f64 && rms < 0.04 && worst < 0.3,
+        "both measured in {both} of {clear} frames; centre RMS {rms:.4} px, worst {worst:.3} px"
+    );
+}

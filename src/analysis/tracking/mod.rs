@@ -15,6 +15,7 @@ use crate::config::Config;
 use std::collections::HashMap;
 
 mod ahead;
+mod cross;
 mod identity;
 mod measure;
 mod walk;
@@ -201,81 +202,6 @@ impl Tracker {
         }
         self.unmeasured.sort_by_key(|u| u.frame);
         (self.released, self.unmeasured)
-    }
-
-    /// Both views measure world x. Where the primary view labelled a and b without continuity
-    /// (after frames where their silhouettes merged: a contact normal out of its plane) and the
-    /// secondary view carried both through those frames, the secondary is right: if swapping
-    /// the primary's labels makes the two views' x agree several times better, they are
-    /// swapped. Spheres that graze past each other in one view were otherwise labelled by the
-    /// side each was on before, and the trajectories came out crossed. And in any frame, one
-    /// circle in the primary view where the secondary sees both closer in x than they are wide
-    /// is dropped (it may hold both: an independent render's frame at contact put it 6.6 px
-    /// from either sphere).
-    fn check_primary_against_secondary(&mut self, cx: &FrameCtx, spheres: &mut Spheres) {
-        if cx.views.len() < 2 {
-            return;
-        }
-        let x = |vi: usize, s: usize| {
-            spheres[s][vi]
-                .as_ref()
-                .map(|m| world_x(&cx.views[vi], m.centre_px))
-        };
-        let (Some(sa), Some(sb)) = (x(1, 0), x(1, 1)) else {
-            return;
-        };
-        // One circle in the primary view where the secondary sees both closer in x than they
-        // are wide: the primary's silhouette may hold both, one partly hiding the other, and a
-        // circle fitted to it sits between them. It is not a measurement of either.
-        let contact_mm = 0.5 * (cx.cfg.spheres.sphere(0).0 + cx.cfg.spheres.sphere(1).0);
-        if x(0, 0).is_some() != x(0, 1).is_some() {
-            if (sa - sb).abs() < contact_mm {
-                for s in 0..2 {
-                    if spheres[s][0].take().is_some() {
-                        // Nor is it where this sphere was.
-                        let mem = &mut self.memory[0];
-                        if mem.history[s].last().is_some_and(|e| e.0 == cx.t) {
-                            mem.history[s].pop();
-                        }
-                        mem.last[s] = mem.history[s].last().map(|e| e.1);
-                        self.unmeasured.push(Unmeasured {
-                            frame: cx.i as u64,
-                            view: cx.views[0].kind.name().into(),
-                            reason: format!(
-                                "{}: one silhouette where the {} view sees both {:.2} mm apart in x: they may overlap here",
-                                ["a", "b"][s],
-                                cx.views[1].kind.name(),
-                                (sa - sb).abs()
-                            ),
-                        });
-                    }
-                }
-            }
-            return;
-        }
-        if self.memory[0].both_in_previous || !self.memory[1].both_in_previous {
-            return;
-        }
-        let (Some(pa), Some(pb)) = (x(0, 0), x(0, 1)) else {
-            return;
-        };
-        let straight = (pa - sa).abs() + (pb - sb).abs();
-        let swapped = (pa - sb).abs() + (pb - sa).abs();
-        if swapped * 3.0 >= straight {
-            return;
-        }
-        let (first, rest) = spheres.split_at_mut(1);
-        std::mem::swap(&mut first[0][0], &mut rest[0][0]);
-        let mem = &mut self.memory[0];
-        mem.last.swap(0, 1);
-        mem.radius.swap(0, 1);
-        let t = cx.t;
-        let (h0, h1) = mem.history.split_at_mut(1);
-        if let (Some(e0), Some(e1)) = (h0[0].last_mut(), h1[0].last_mut()) {
-            if e0.0 == t && e1.0 == t {
-                std::mem::swap(e0, e1);
-            }
-        }
     }
 
     /// One view of one frame: blobs, their a/b labels (by x from the primary view, continuity,
@@ -643,69 +569,6 @@ impl Tracker {
             }
         }
         false
-    }
-
-    /// The primary view's lone sphere, labelled by the x the secondary view measured in the
-    /// same frame.
-    fn label_by_secondary_x(
-        &mut self,
-        cx: &FrameCtx,
-        blob: &Blob,
-        lv: &ViewLevels,
-        spheres: &mut Spheres,
-    ) {
-        let view = &cx.views[0];
-        let dots0 = cx.dots.get(&(cx.i, 0)).map(Vec::as_slice).unwrap_or(&[]);
-        let radius = [0, 1].map(|s| cx.cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
-        let contact_mm = 0.5 * (cx.cfg.spheres.sphere(0).0 + cx.cfg.spheres.sphere(1).0);
-        // x of a and b as the secondary view measured them in this frame; a sphere it
-        // did not measure matches nothing.
-        let x = [0, 1].map(|s| {
-            (1..cx.views.len()).find_map(|vj| {
-                spheres[s][vj]
-                    .as_ref()
-                    .map(|m| world_x(&cx.views[vj], m.centre_px))
-            })
-        });
-        let both = x[0]
-            .zip(x[1])
-            .is_some_and(|(xa, xb)| (xa - xb).abs() > contact_mm);
-        let labels = if both {
-            assign_by_x(std::slice::from_ref(blob), view, x, contact_mm)
-        } else {
-            [None, None]
-        };
-        match labels.iter().position(|l| l.is_some()) {
-            Some(s) => match measure_blob(
-                cx.img,
-                view,
-                blob,
-                s,
-                radius[s],
-                None,
-                lv,
-                cx.cfg,
-                dots0,
-                cx.blob_fit(0, view, blob, radius[s], None, lv.background, dots0),
-            ) {
-                Ok((m, f)) => {
-                    spheres[s][0] = Some(m);
-                    self.memory[0].last[s] = Some(f.centre);
-                    self.memory[0].radius[s] = Some(f.radius);
-                    self.memory[0].history[s].push((cx.t, f.centre));
-                }
-                Err(reason) => self.unmeasured.push(Unmeasured {
-                    frame: cx.i as u64,
-                    view: view.kind.name().into(),
-                    reason,
-                }),
-            },
-            None => self.unmeasured.push(Unmeasured {
-                frame: cx.i as u64,
-                view: view.kind.name().into(),
-                reason: "one sphere seen and no earlier frame, nor the other view, tells whether it is a or b".into(),
-            }),
-        }
     }
 
     /// The frame's measurements into the memory: the primary view's x of each sphere, and per
