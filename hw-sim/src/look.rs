@@ -77,8 +77,13 @@ pub struct Look {
     pub specular_grey: f64,
     /// Blinn–Phong exponent: larger is a smaller, sharper highlight.
     pub shininess: f64,
-    /// Dark spheres on a bright background (a light behind the spheres); markers are not seen.
+    /// Dark spheres on a bright background (a light behind the spheres); markers are not seen
+    /// unless `backlit_front_light`.
     pub backlit: bool,
+    /// With `backlit`: a lamp in front too, so the dark spheres show their own shading
+    /// (`sim.sphere_grey` as albedo, the views' lights and `ambient`) and their markers, dark
+    /// paint on a dark surface (faint; multiplicative paint keeps `marker_factor` of it).
+    pub backlit_front_light: bool,
     pub marker_paint: MarkerPaint,
     /// For multiplicative paint: the fraction of the local shading a marker keeps.
     pub marker_factor: f64,
@@ -105,6 +110,7 @@ impl Default for Look {
             specular_grey: 0.0,
             shininess: 40.0,
             backlit: false,
+            backlit_front_light: false,
             marker_paint: MarkerPaint::Grey,
             marker_factor: 0.2,
             markers_one_hemisphere: false,
@@ -128,7 +134,8 @@ pub struct Levels {
 impl Look {
     /// The families `draw` knows. `side_lit`: a lamp 10–40° off each view's axis, ambient
     /// floor, gradient and vignetting, mirror dimmer, multiplicative markers. `specular`: the
-    /// same with a highlight. `backlit`: dark silhouettes on a bright ground. `cluttered`:
+    /// same with a highlight. `backlit`: dark silhouettes on a bright ground, half of them lit
+    /// from the front too (faint shading and dots). `cluttered`:
     /// side-lit with tube ends and a ruler in view. `defocus`: side-lit and blurred. `paint`:
     /// side-lit with markers of one fixed grey, all over. `mixed`: each of those features
     /// drawn independently.
@@ -188,11 +195,19 @@ impl Look {
             }
             "backlit" => {
                 look.backlit = true;
-                look.views
-                    .iter_mut()
-                    .for_each(|v| v.light_off_axis_deg = 0.0);
                 levels.background_grey = u(170.0, 230.0);
                 levels.sphere_grey = u(10.0, 45.0);
+                // Half the draws have a lamp in front too: the spheres show faint shading and
+                // faint dots (the paint keeps 40–65 % of the dark surface's light).
+                look.backlit_front_light = u(0.0, 1.0) < 0.5;
+                if look.backlit_front_light {
+                    look.ambient = u(0.6, 0.9);
+                    look.marker_factor = u(0.4, 0.65);
+                } else {
+                    look.views
+                        .iter_mut()
+                        .for_each(|v| v.light_off_axis_deg = 0.0);
+                }
             }
             "cluttered" => {
                 look.tube_ends = true;

@@ -50,6 +50,8 @@ pub struct Backdrop {
     /// The frame's `GreyImage::ground`: per pixel, the subtracted backdrop above its view's
     /// level (bright side up); None without a backdrop.
     ground: Option<Arc<[f32]>>,
+    /// The rectangles of the inverted views (`GreyImage::inverted`).
+    inverted: Arc<[[usize; 4]]>,
 }
 
 impl Backdrop {
@@ -138,7 +140,16 @@ impl Backdrop {
             }
             Arc::from(g)
         });
-        Ok(Backdrop { views: out, ground })
+        let inverted = out
+            .iter()
+            .filter(|vb| vb.dark_spheres)
+            .map(|vb| vb.rect)
+            .collect();
+        Ok(Backdrop {
+            views: out,
+            ground,
+            inverted,
+        })
     }
 
     /// Normalises one frame in place (see the module's doc).
@@ -148,6 +159,7 @@ impl Backdrop {
             .ground
             .clone()
             .filter(|g| g.len() == img.width * img.height);
+        img.inverted = self.inverted.clone();
         for vb in &self.views {
             let [x0, y0, x1, y1] = vb.rect;
             if x1 > img.width || y1 > img.height {
@@ -183,7 +195,7 @@ impl Backdrop {
             .filter(|v| v.dark_spheres)
             .map(|v| {
                 format!(
-                    "{} view: the spheres are darker than their ground (backlit); measured as silhouettes, so markers are not expected there",
+                    "{} view: the spheres are darker than their ground (backlit); measured inverted, its markers looked for as dots darker still (seen only where a light in front shows them)",
                     v.name
                 )
             })
@@ -462,5 +474,17 @@ mod tests {
         );
         assert!((img.at(70, 28) - level).abs() < 3.0, "the dark bar is gone");
         assert!(b.warnings()[0].contains("backlit"));
+        // Markers are looked for in the sphere's own grey, the right way up: the raw frame's
+        // level inside the disc, whatever was subtracted and inverted.
+        let mut raw = GreyImage::new();
+        src.read(10, &mut raw).expect("read");
+        for (u, v) in [(38, 12), (70, 28), (5, 5)] {
+            assert!(
+                (img.lit_at(u, v) - raw.at(u, v)).abs() < 1e-3,
+                "({u}, {v}): lit_at {} against the raw {}",
+                img.lit_at(u, v),
+                raw.at(u, v)
+            );
+        }
     }
 }

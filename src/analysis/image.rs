@@ -14,6 +14,9 @@ pub struct GreyImage {
     /// it covers a pixel the normalised frame holds its shading minus this; None where nothing
     /// was subtracted (all zero).
     pub ground: Option<Arc<[f32]>>,
+    /// The rectangles [x0, y0, x1, y1) (exclusive ends) of views the normalisation inverted
+    /// (backlit: the spheres darker than their ground); empty where none was.
+    pub inverted: Arc<[[usize; 4]]>,
 }
 
 impl GreyImage {
@@ -23,6 +26,7 @@ impl GreyImage {
             height: 0,
             data: Vec::new(),
             ground: None,
+            inverted: Arc::from([]),
         }
     }
 
@@ -31,6 +35,7 @@ impl GreyImage {
         self.width = width;
         self.height = height;
         self.ground = None;
+        self.inverted = Arc::from([]);
         self.data.clear();
         if bytes_per_pixel == 1 {
             self.data.extend(raw.iter().map(|&b| b as f32));
@@ -63,6 +68,27 @@ impl GreyImage {
     #[inline]
     pub fn sphere_at(&self, u: usize, v: usize) -> f32 {
         self.at(u, v) + self.ground_at(u, v)
+    }
+
+    /// The grey level at pixel (u, v) that a covering sphere's own surface gives, the right way
+    /// up: `sphere_at`, turned back where the view was inverted. In a backlit view lit from the
+    /// front too, the sphere is dark and its painted dots darker still; inverted, they would be
+    /// brighter than the disc. Markers are found in these levels (which are the frame's greys
+    /// as recorded, wherever a backdrop was subtracted).
+    #[inline]
+    pub fn lit_at(&self, u: usize, v: usize) -> f32 {
+        let s = self.sphere_at(u, v);
+        if self
+            .inverted
+            .iter()
+            .any(|r| u >= r[0] && v >= r[1] && u < r[2] && v < r[3])
+        {
+            // The inversion put p at level + (still − p) and `ground` holds (255 − still) −
+            // level, so p = 255 − sphere_at.
+            255.0 - s
+        } else {
+            s
+        }
     }
 
     /// The largest |`ground`| over the pixels a bilinear sample at (u, v) reads; 0 outside the

@@ -20,6 +20,10 @@ pub struct MarkerObs {
     pub weight: f64,
 }
 
+/// How far a dot's darkness summed over its pixels must stand above the noise, in σ of that
+/// sum (σ·√n for n pixels).
+const DOT_SIGNIFICANCE: f64 = 5.0;
+
 /// sin 53°: markers further out than this fraction of the radius are not lifted (closer to the
 /// limb their centroid is biased inwards by the steep shading and the clipped dot).
 const MAX_RHO_FRACTION: f64 = 0.8;
@@ -56,6 +60,10 @@ pub fn find(
         return Vec::new();
     };
     let expected = |u: f64, v: f64| shading.at(u, v);
+    // The noise on the disc itself, not the view's: under shot noise a dark sphere on a bright
+    // ground (backlit, lit from the front too) is far quieter than its ground, and its dots,
+    // dark paint on a dark surface, stand out by little more than the ground's noise.
+    let noise_sigma = shading.sigma;
     let w = u1 - u0 + 1;
     let h = v1 - v0 + 1;
     let mut dark = vec![0.0f64; w * h];
@@ -66,8 +74,13 @@ pub fn find(
                 continue;
             }
             let e = expected(u as f64, v as f64);
-            let d = e - img.sphere_at(u, v) as f64;
-            if d > (0.25 * e).max(5.0 * noise_sigma) {
+            let d = e - img.lit_at(u, v) as f64;
+            // A pixel is a candidate when it is a quarter darker than the shading and clear of
+            // the noise; a dot is kept below when its darkness summed over its pixels is (see
+            // `DOT_SIGNIFICANCE`). Why the sum: a faint dot (dark paint on a dark sphere) is
+            // darker than the noise in each of its pixels by only a few σ, but over all of them
+            // by many; a lone noisy pixel is not.
+            if d > (0.25 * e).max(2.5 * noise_sigma) {
                 dark[(v - v0) * w + (u - u0)] = d;
             }
         }
@@ -111,9 +124,12 @@ pub fn find(
         if sw <= 0.0 || members.len() as f64 > 0.25 * std::f64::consts::PI * r * r {
             continue;
         }
+        if sw < DOT_SIGNIFICANCE * noise_sigma * (members.len() as f64).sqrt() {
+            continue;
+        }
         let darkest = members
             .iter()
-            .map(|&k| img.sphere_at(u0 + k % w, v0 + k / w) as f64)
+            .map(|&k| img.lit_at(u0 + k % w, v0 + k / w) as f64)
             .fold(f64::INFINITY, f64::min);
         dots.push(([su / sw, sv / sw], darkest));
     }
@@ -157,7 +173,7 @@ pub fn find(
                     if e - paint <= 0.0 {
                         continue;
                     }
-                    let d = (e - img.sphere_at(u, v) as f64) / (e - paint);
+                    let d = (e - img.lit_at(u, v) as f64) / (e - paint);
                     cw += d;
                     cu_acc += d * fu;
                     cv_acc += d * fv;
@@ -269,6 +285,8 @@ struct Shading {
     centre: [f64; 2],
     radius: f64,
     p: nalgebra::SVector<f64, 5>,
+    /// The robust scatter of the disc's pixels about the fit (floored at 0.5 grey level).
+    sigma: f64,
 }
 
 impl Shading {
@@ -308,13 +326,14 @@ impl Shading {
                 if (fu - centre[0]).hypot(fv - centre[1]) < within {
                     pix.push((
                         Self::basis_of(centre, radius, fu, fv),
-                        img.sphere_at(u, v) as f64,
+                        img.lit_at(u, v) as f64,
                     ));
                 }
             }
         }
         let mut keep = vec![true; pix.len()];
         let mut p = None;
+        let mut own_sigma = noise_sigma;
         for _ in 0..4 {
             let mut ata = nalgebra::SMatrix::<f64, 5, 5>::zeros();
             let mut atb = nalgebra::SVector::<f64, 5>::zeros();
@@ -338,7 +357,8 @@ impl Shading {
                 .map(|(r, _)| r.abs())
                 .collect();
             abs.sort_by(f64::total_cmp);
-            let sigma = (1.4826 * abs[abs.len() / 2]).max(noise_sigma);
+            own_sigma = (1.4826 * abs[abs.len() / 2]).max(0.5);
+            let sigma = own_sigma.max(noise_sigma);
             let changed = res
                 .iter()
                 .zip(keep.iter_mut())
@@ -357,6 +377,7 @@ impl Shading {
             centre,
             radius,
             p: p?,
+            sigma: own_sigma,
         })
     }
 }

@@ -194,7 +194,7 @@ impl LookState {
         }
         let (_, n, i, p) = best?;
         let look = &self.look;
-        if look.backlit {
+        if look.backlit && !look.backlit_front_light {
             return Some((cfg.sphere_grey, i, false));
         }
         let light = self.lights[vi];
