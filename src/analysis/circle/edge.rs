@@ -240,25 +240,14 @@ const PARTIAL_ARC_SECTORS: usize = 20;
 pub const NEIGHBOUR_MARGIN_PX: f64 = 3.0;
 
 /// A circle through edge points on rays from a rough centre, where the grey level crosses
-/// halfway between `background` and the shading just inside the edge on that side.
+/// halfway between `background` and the shading just inside the edge on that side; and whether
+/// a static backdrop hid part of the edge (rays left out over it): then the fit is only a
+/// start, which the grey-level fit must confirm.
 ///
 /// Why per side: a sphere lit from one side is bright at its rim there and at the ambient
 /// floor on the other; one level for the whole rim crosses the dark side's edge far inside
 /// it, or not at all, and such a disc was rejected as "not one circle".
 pub fn fit_edges(
-    img: &GreyImage,
-    view: &View,
-    rough: [f64; 2],
-    radius_px: f64,
-    background: f64,
-    other: Option<([f64; 2], f64)>,
-) -> Option<CircleFit> {
-    fit_edges_in_view(img, view, rough, radius_px, background, other).map(|(f, _)| f)
-}
-
-/// `fit_edges`, and whether a static backdrop hid part of the edge (rays left out over it):
-/// then the fit is only a start, which the grey-level fit must confirm.
-pub fn fit_edges_in_view(
     img: &GreyImage,
     view: &View,
     rough: [f64; 2],

@@ -56,7 +56,7 @@ pub fn refine(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
 ) -> Option<CircleFit> {
-    let (f, hidden) = fit_edges_in_view(img, view, rough, radius_px, background, other)?;
+    let (f, hidden) = fit_edges(img, view, rough, radius_px, background, other)?;
     match profile_fit(img, view, &f, background, other, dots) {
         Some(p) => Some(p),
         None if hidden => None,

@@ -194,7 +194,8 @@ fn profile_fit_beats_edge_points_without_bias() {
             let other = Some((truth[1], r_px));
             let rough = [truth[0][0] + 0.3, truth[0][1] - 0.2];
             let e = fit_edges(&img, &view, rough, r_px - 0.15, cfg.background_grey, other)
-                .expect("edge fit");
+                .expect("edge fit")
+                .0;
             let m = profile_fit(&img, &view, &e, cfg.background_grey, other, &[])
                 .expect("the profile fit settles (a ring the neighbour cuts by a third at most)");
             edge.push([e.centre[0] - truth[0][0], e.centre[1] - truth[0][1]]);
@@ -248,7 +249,8 @@ fn touching_discs_fitted_together_keep_the_side_that_faces_the_other() {
             let other = Some((truth[1 - s], r_px));
             let rough = [truth[s][0] + 0.3, truth[s][1] - 0.2];
             let e = fit_edges(&img, &view, rough, r_px - 0.15, cfg.background_grey, other)
-                .expect("edge fit");
+                .expect("edge fit")
+                .0;
             profile_fit(&img, &view, &e, cfg.background_grey, other, &[]).unwrap_or(e)
         };
         let (fa, fb) = (fit(0), fit(1));
@@ -462,7 +464,8 @@ fn lone_sphere_errors(cfg: &hw_sim::LabConfig, markers: usize) -> Vec<([f64; 2],
             .collect();
         let rough = [t[0] + 0.3, t[1] - 0.2];
         let e = fit_edges(&img, &view, rough, r_px - 0.15, cfg.background_grey, None)
-            .expect("edge fit");
+            .expect("edge fit")
+            .0;
         let (Some(plain), Some(masked)) = (
             profile_fit(&img, &view, &e, cfg.background_grey, None, &[]),
             profile_fit(&img, &view, &e, cfg.background_grey, None, &masks),
@@ -558,7 +561,8 @@ fn a_disc_cut_by_the_view_border_is_fitted_on_its_grey_levels() {
             30.0,
             None,
         )
-        .expect("edge fit on the visible arc");
+        .expect("edge fit on the visible arc")
+        .0;
         edge.push([e.centre[0] - t[0], e.centre[1] - t[1]]);
         if let Some(m) = profile_fit(&img, &view, &e, 30.0, None, &[]) {
             model.push([m.centre[0] - t[0], m.centre[1] - t[1]]);
