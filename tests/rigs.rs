@@ -283,3 +283,91 @@ fn the_shorthand_on_a_turned_rig_warns_and_calibrate_finds_its_maps() {
     let (report, _) = run(t.path(), "[sim]\nseed = 23\n");
     assert_eq!(geometry_warnings(&report), Vec::<String>::new());
 }
+
+#[test]
+fn calibrate_finds_the_mirrors_edge_where_the_configs_regions_cut_through_a_view() {
+    // A recording of the thesis rig, then calibrate given regions whose edge runs through the
+    // direct view's spheres (row 40): it must find the edge itself, between every sphere of one
+    // view and every sphere of the other, and fit the maps as with the right regions.
+    let t = tempfile::tempdir().unwrap();
+    let (_, truth) = run(t.path(), "[sim]\nseed = 31\n");
+    let session = common::first_session(t.path());
+    let default =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/default.toml"))
+            .unwrap();
+    let cut = default
+        .replacen("region = [0, 0, 240, 96]", "region = [0, 0, 240, 40]", 1)
+        .replacen("region = [0, 96, 240, 96]", "region = [0, 40, 240, 152]", 1);
+    assert_ne!(cut, default, "the default config's regions were replaced");
+    std::fs::write(t.path().join("cut.toml"), &cut).unwrap();
+    let calibrate = |config: &str| -> String {
+        let out = common::impactcam(
+            t.path(),
+            &["calibrate", session.to_str().unwrap(), "--config", config],
+        );
+        assert!(out.status.success(), "{}", common::stderr(&out));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let text = calibrate("cut.toml");
+    let note = text.lines().find(|l| l.starts_with("# regions:")).unwrap();
+    assert!(note.contains("cut through"), "{note}");
+    let regions: Vec<Vec<u32>> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("region = "))
+        .map(|r| serde_json::from_str(r).unwrap())
+        .collect();
+    assert_eq!(regions.len(), 2, "{text}");
+    let edge = regions[0][3];
+    assert_eq!(regions[0], vec![0, 0, 240, edge]);
+    assert_eq!(regions[1], vec![0, edge, 240, 192 - edge]);
+    // Every sphere wholly inside its true view (rows 0–95 direct, 96–191 mirror) is wholly on
+    // its own side of the found edge.
+    let (mut lowest_direct, mut highest_mirror) = (f64::MIN, f64::MAX);
+    for f in truth["frames"].as_array().unwrap() {
+        for s in ["a", "b"] {
+            for (view, rows) in [("direct", (0.0, 96.0)), ("mirror", (96.0, 192.0))] {
+                let v = &f["spheres"][s]["views"][view];
+                let (Some(c), Some(d)) = (v["centre_px"][1].as_f64(), v["diameter_px"].as_f64())
+                else {
+                    continue;
+                };
+                let (top, bottom) = (c - d / 2.0, c + d / 2.0);
+                if top < rows.0 - 0.5 || bottom > rows.1 - 0.5 {
+                    continue;
+                }
+                if view == "direct" {
+                    lowest_direct = lowest_direct.max(bottom);
+                } else {
+                    highest_mirror = highest_mirror.min(top);
+                }
+            }
+        }
+    }
+    assert!(
+        lowest_direct < f64::from(edge) - 0.5 && f64::from(edge) - 0.5 < highest_mirror,
+        "edge at row {edge}: direct spheres reach {lowest_direct:.1}, mirror spheres from {highest_mirror:.1}"
+    );
+    // The maps are those found with the right regions, within their σ.
+    let scale = |text: &str| -> (f64, f64) {
+        // "# direct: scale a ± s px/mm from free fall, b ± s px/mm from the diameter, c ± s px/mm used;"
+        let line = text
+            .lines()
+            .find(|l| l.starts_with("# direct: scale"))
+            .unwrap();
+        let used: Vec<&str> = line.split(',').nth(2).unwrap().split_whitespace().collect();
+        (used[0].parse().unwrap(), used[2].parse().unwrap())
+    };
+    let right = calibrate(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config/default.toml")
+            .to_str()
+            .unwrap(),
+    );
+    let kept = right.lines().find(|l| l.starts_with("# regions:")).unwrap();
+    assert!(kept.contains("are kept"), "{kept}");
+    let ((found, _), (typed, sigma)) = (scale(&text), scale(&right));
+    assert!(
+        (found - typed).abs() <= sigma,
+        "direct scale {found} px/mm with the found regions, {typed} ± {sigma} with the right ones"
+    );
+}

@@ -10,8 +10,17 @@ pub struct Blob {
     /// Intensity-weighted centroid, px (full frame).
     pub centroid: [f64; 2],
     pub area_px: usize,
+    /// The first and last pixel column and row the blob covers, [u0, v0, u1, v1] (full frame).
+    pub extent_px: [usize; 4],
     pub clipped: bool,
     pub merged: bool,
+}
+
+impl Blob {
+    /// The diameter of a disc of the blob's area, px.
+    pub fn diameter_px(&self) -> f64 {
+        2.0 * (self.area_px as f64 / std::f64::consts::PI).sqrt()
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -98,12 +107,19 @@ pub fn find_blobs(
             stack.push((su, sv));
             let (mut area, mut sw, mut su_acc, mut sv_acc, mut clipped) =
                 (0usize, 0.0, 0.0, 0.0, false);
+            let mut extent = [x0 + su, y0 + sv, x0 + su, y0 + sv];
             while let Some((cu, cv)) = stack.pop() {
                 let val = level(x0 + cu, y0 + cv) as f64 - lv.background;
                 area += 1;
                 sw += val;
                 su_acc += val * (x0 + cu) as f64;
                 sv_acc += val * (y0 + cv) as f64;
+                extent = [
+                    extent[0].min(x0 + cu),
+                    extent[1].min(y0 + cv),
+                    extent[2].max(x0 + cu),
+                    extent[3].max(y0 + cv),
+                ];
                 if cu == 0 || cv == 0 || cu + 1 == rw || cv + 1 == rh {
                     clipped = true;
                 }
@@ -134,6 +150,7 @@ pub fn find_blobs(
             blobs.push(Blob {
                 centroid: [su_acc / sw, sv_acc / sw],
                 area_px: area,
+                extent_px: extent,
                 clipped,
                 merged: area as f64 > 1.45 * disc_area,
             });

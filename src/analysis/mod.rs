@@ -25,7 +25,7 @@ mod second_pass;
 pub mod source;
 pub mod stages;
 mod survey;
-pub use survey::{blob_survey, measure};
+pub use survey::{blob_survey, blobs, measure};
 pub mod spin;
 pub mod thesis;
 pub mod tracking;

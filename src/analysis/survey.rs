@@ -39,6 +39,22 @@ pub fn blob_survey(
     cfg: &Config,
     frames: usize,
 ) -> Result<Vec<Vec<Vec<([f64; 2], f64)>>>, AnalysisError> {
+    Ok(blobs(src, cfg, frames)?
+        .into_iter()
+        .map(|f| {
+            f.into_iter()
+                .map(|v| v.iter().map(|b| (b.centroid, b.diameter_px())).collect())
+                .collect()
+        })
+        .collect())
+}
+
+/// As `blob_survey`, each view's whole blobs as found (with their pixel extents).
+pub fn blobs(
+    src: &mut dyn FrameSource,
+    cfg: &Config,
+    frames: usize,
+) -> Result<Vec<Vec<Vec<detect::Blob>>>, AnalysisError> {
     let views = geometry::views(cfg);
     let backdrop = backdrop::Backdrop::estimate(src, &views)?;
     let n = src.len();
@@ -60,10 +76,6 @@ pub fn blob_survey(
                     detect::find_blobs(&img, view, &lv, 2.0, cfg.analysis.threshold_fraction)
                         .into_iter()
                         .filter(|b| !b.clipped)
-                        .map(|b| {
-                            let d = 2.0 * (b.area_px as f64 / std::f64::consts::PI).sqrt();
-                            (b.centroid, d)
-                        })
                         .collect()
                 })
                 .collect(),

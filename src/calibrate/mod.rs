@@ -1,6 +1,8 @@
 //! `impactcam calibrate`: each view's map found from recordings of collisions, knowing only the
-//! spheres' diameter, the frame rate and g. The frames are measured with a provisional geometry
-//! (the config's regions and flips, its scales or the blobs'; `provisional`), the flights are
+//! spheres' diameter, the frame rate and g. The mirror's edge is found first (`regions`: the
+//! config's regions are kept where they keep each view's spheres whole and apart, else replaced
+//! by the found ones). The frames are measured with a provisional geometry (those regions, the
+//! config's flips, its scales or the blobs'; `provisional`), the flights are
 //! found in the direct view's image (`flights`), and both views' maps are fitted to them at once
 //! (`bundle`, parametrised in `maps`):
 //!
@@ -10,8 +12,9 @@
 //!   share and from free fall; each camera's distance where perspective shows.
 //!
 //! What the data cannot give is kept from the config: the world origin (the direct view's
-//! `origin_px`, and the mirror's v offset, which sets z = 0), the regions, and the sign of z in
-//! the mirror (which side of the collision the mirror is on).
+//! `origin_px`, and the mirror's v offset, which sets z = 0), the sign of z in the mirror (which
+//! side of the collision the mirror is on), and the views' layout (above each other or side by
+//! side, and which side is the direct view).
 
 use crate::analysis::geometry::ViewKind;
 
@@ -20,6 +23,7 @@ mod flights;
 mod maps;
 mod output;
 mod provisional;
+mod regions;
 
 use crate::analysis::{self, AnalysisError, FrameSource};
 use crate::config::Config;
@@ -80,6 +84,9 @@ pub struct Calibrated {
     pub frames: usize,
     /// The frame nearest the impact (drawn in the PNG).
     pub impact_frame: usize,
+    /// How the views' regions were settled: the mirror's edge as found, and whether the
+    /// config's regions were kept or replaced.
+    pub regions: String,
     pub direct: DirectFit,
     pub mirror: Option<MirrorFit>,
     pub geometry: crate::config::Geometry,
@@ -172,6 +179,49 @@ pub fn calibrate(
         source_name: name.clone(),
         message,
     };
+    if cfg.geometry.direct.is_none() {
+        return Err(CalibrateError::NoDirectView { source_name: name });
+    }
+    // The regions: the mirror's edge found in the frames; the config's regions are kept when
+    // they keep each view's spheres whole and apart, and replaced by the found ones otherwise.
+    let (regions, cfg) = {
+        let found = regions::survey(src, cfg).map_err(|cause| CalibrateError::Provisional {
+            source_name: name.clone(),
+            cause,
+        })?;
+        let typed: Vec<[u32; 4]> = [&cfg.geometry.direct, &cfg.geometry.mirror]
+            .into_iter()
+            .flatten()
+            .map(|v| v.region)
+            .collect();
+        let mut settled = cfg.clone();
+        let note = match &found.split {
+            Some(split) if found.separates(&typed) => {
+                format!("{}; the config's regions keep each view's spheres whole and apart, and are kept: {typed:?}", split.describe())
+            }
+            Some(split) => {
+                let (w, h) = src.dimensions();
+                let (d, m) = split.regions(w, h);
+                if let Some(v) = settled.geometry.direct.as_mut() {
+                    v.region = d;
+                }
+                let mirror = match settled.geometry.mirror.as_mut() {
+                    Some(v) => {
+                        v.region = m;
+                        format!("mirror {m:?}")
+                    }
+                    None => "the config has no [geometry.mirror] for the other side".into(),
+                };
+                format!(
+                    "{}; the config's regions cut through a view's spheres, so these are used: direct {d:?}, {mirror}",
+                    split.describe()
+                )
+            }
+            None => "the mirror's edge was not found (no two groups of spheres that share x); the config's regions are kept".into(),
+        };
+        (note, settled)
+    };
+    let cfg = &cfg;
     let Some(direct_cfg) = cfg.geometry.direct.clone() else {
         return Err(CalibrateError::NoDirectView { source_name: name });
     };
@@ -393,6 +443,7 @@ pub fn calibrate(
         recordings: used,
         frames: obs.len(),
         impact_frame: split_frame,
+        regions,
         direct: DirectFit {
             scale_from_free_fall,
             scale_from_diameter,

@@ -31,6 +31,7 @@ impl Calibrated {
             p(&d.roll_deg, "deg", 3),
             d.residual_rms_px
         );
+        out += &format!("# regions: {}\n", self.regions);
         let persp = |d: &Option<Fitted>| match d {
             Some(d) => format!("a pinhole {}", p(d, "mm away", 0)),
             None => "no perspective found (orthographic)".into(),
