@@ -88,6 +88,10 @@ pub struct LabConfig {
     /// Every view becomes a pinhole camera this far from the world origin, mm (the mirror's
     /// virtual camera too); absent: orthographic, as before.
     pub perspective_distance_mm: Option<f64>,
+    /// Radial lens distortion of the camera (both views through one lens): the fractional
+    /// displacement at the frame's corners, about the frame's centre (negative: barrel); 0:
+    /// none.
+    pub lens_k1: f64,
     /// How the rig looks (light, surface, paint, clutter, focus); absent = the original render.
     pub look: Option<Look>,
     /// Draw the look at random from this family and the seed (`Look::FAMILIES`, or "varied");
@@ -130,6 +134,7 @@ impl Default for LabConfig {
             camera_roll_deg: 0.0,
             mirror_tilt_deg: 0.0,
             perspective_distance_mm: None,
+            lens_k1: 0.0,
             look: None,
             look_family: None,
         }
@@ -237,6 +242,7 @@ impl LabConfig {
         range("drop_probability", self.drop_probability, 0.0, 0.5)?;
         range("mirror_scale_error", self.mirror_scale_error, -0.2, 0.2)?;
         range("camera_roll_deg", self.camera_roll_deg, -10.0, 10.0)?;
+        range("lens_k1", self.lens_k1, -0.2, 0.2)?;
         range("mirror_tilt_deg", self.mirror_tilt_deg, -10.0, 10.0)?;
         if let Some(d) = self.perspective_distance_mm {
             range("perspective_distance_mm", d, 100.0, 1e5)?;
@@ -277,6 +283,51 @@ pub struct ViewSpec {
     /// the scale on the plane through the origin square to the line of sight); None:
     /// orthographic.
     pub distance_mm: Option<f64>,
+    /// The lens's radial distortion, applied after the projection; None: none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lens: Option<Lens>,
+}
+
+/// Radial lens distortion about `centre_px`: an ideal image point p lands at
+/// c + (p − c)·(1 + k1·r²), r = |p − c| / `radius_px` (the frame's half-diagonal), so `k1` is
+/// the fractional displacement at the frame's corners (negative: barrel).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Lens {
+    pub k1: f64,
+    pub centre_px: [f64; 2],
+    pub radius_px: f64,
+}
+
+impl Lens {
+    /// The scale factor 1 + k1·r² at ideal image point (u, v).
+    pub fn factor(&self, u: f64, v: f64) -> f64 {
+        let (du, dv) = (u - self.centre_px[0], v - self.centre_px[1]);
+        1.0 + self.k1 * (du * du + dv * dv) / (self.radius_px * self.radius_px)
+    }
+
+    /// Where the ideal image point (u, v) is recorded.
+    pub fn distort(&self, u: f64, v: f64) -> (f64, f64) {
+        let f = self.factor(u, v);
+        let c = self.centre_px;
+        (c[0] + (u - c[0]) * f, c[1] + (v - c[1]) * f)
+    }
+
+    /// The ideal image point recorded at (u, v): the inverse of `distort`, by fixed-point
+    /// iteration (a contraction for |k1| ≤ 0.2 inside the frame; settled to 1e-9 px).
+    pub fn undistort(&self, u: f64, v: f64) -> (f64, f64) {
+        let c = self.centre_px;
+        let (mut x, mut y) = (u, v);
+        for _ in 0..50 {
+            let f = self.factor(x, y);
+            let (nx, ny) = (c[0] + (u - c[0]) / f, c[1] + (v - c[1]) / f);
+            let done = (nx - x).abs() + (ny - y).abs() < 1e-9;
+            (x, y) = (nx, ny);
+            if done {
+                break;
+            }
+        }
+        (x, y)
+    }
 }
 
 impl ViewSpec {

@@ -42,6 +42,17 @@ impl SimLab {
         for v in scene.views.iter_mut() {
             v.distance_mm = cfg.perspective_distance_mm;
         }
+        if cfg.lens_k1 != 0.0 {
+            let (w, h) = (f64::from(scene.width), f64::from(scene.height));
+            let lens = crate::config::Lens {
+                k1: cfg.lens_k1,
+                centre_px: [(w - 1.0) / 2.0, (h - 1.0) / 2.0],
+                radius_px: 0.5 * w.hypot(h),
+            };
+            for v in scene.views.iter_mut() {
+                v.lens = Some(lens);
+            }
+        }
         if cfg.camera_roll_deg != 0.0 {
             let centre = [
                 (f64::from(scene.width) - 1.0) / 2.0,
@@ -219,10 +230,14 @@ impl SimLab {
             .views
             .iter()
             .map(|view| {
-                let map = match view.projection() {
+                let mut map = match view.projection() {
                     Some(p) => json!({"projection": p}),
                     None => json!({"matrix_px_per_mm": view.matrix_px_per_mm(), "origin_px": view.origin_px}),
                 };
+                // The map is of the ideal image; a lens then moves every point (`Lens`).
+                if let Some(lens) = &view.lens {
+                    map["lens"] = json!(lens);
+                }
                 (view.name.clone(), map)
             })
             .collect();

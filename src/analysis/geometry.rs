@@ -339,6 +339,7 @@ pub fn sim_view(v: &View) -> hw_sim::ViewSpec {
         v_axis: v.v_axis.into(),
         facing: v.facing.into(),
         distance_mm: None,
+        lens: None,
     }
 }
 

@@ -434,28 +434,48 @@ fn discs_in(view: &ViewSpec, poses: &[[Pose; 2]]) -> Vec<(f64, f64, f64)> {
 
 /// Image position of a world point in a view, px (full-frame coordinates).
 pub fn project(view: &ViewSpec, p: &V3) -> (f64, f64) {
+    let ideal = project_ideal(view, p);
+    match &view.lens {
+        Some(lens) => lens.distort(ideal.0, ideal.1),
+        None => ideal,
+    }
+}
+
+/// Image position of a world point before the lens's distortion, px.
+fn project_ideal(view: &ViewSpec, p: &V3) -> (f64, f64) {
     let ua = V3::from(view.u_axis);
     let va = V3::from(view.v_axis);
-    let Some(d) = view.distance_mm else {
-        return (
+    match view.distance_mm {
+        None => (
             view.origin_px[0] + view.px_per_mm * ua.dot(p),
             view.origin_px[1] + view.px_per_mm * va.dot(p),
-        );
-    };
-    let k = view.px_per_mm * d / (d - V3::from(view.facing).dot(p));
-    (
-        view.origin_px[0] + k * ua.dot(p),
-        view.origin_px[1] + k * va.dot(p),
-    )
+        ),
+        Some(d) => {
+            let k = view.px_per_mm * d / (d - V3::from(view.facing).dot(p));
+            (
+                view.origin_px[0] + k * ua.dot(p),
+                view.origin_px[1] + k * va.dot(p),
+            )
+        }
+    }
 }
 
 /// Radius in px of a sphere's image centred at world point `c` (under perspective, that of
 /// the disc at its depth; its outline is an ellipse a little larger, by the square of the angle
 /// off the axis).
 pub fn radius_px(view: &ViewSpec, c: &V3, radius_mm: f64) -> f64 {
-    match view.distance_mm {
+    let ideal = match view.distance_mm {
         None => radius_mm * view.px_per_mm,
         Some(d) => radius_mm * view.px_per_mm * d / (d - V3::from(view.facing).dot(c)),
+    };
+    // Under distortion, the scale across the line to the lens's centre there (along it the
+    // image is stretched by 1 + 3·k1·r² instead: the outline is no longer a circle).
+    match &view.lens {
+        Some(lens) => {
+            let (u, v) = project_ideal(view, c);
+            ideal * lens.factor(u, v)
+        }
+        None => ideal,
     }
 }
 
@@ -472,8 +492,13 @@ pub(crate) fn hit(
     let ua = V3::from(view.u_axis);
     let va = V3::from(view.v_axis);
     let facing = V3::from(view.facing);
+    // A distorted view records at (su, sv) what the ideal one shows at its undistorted point.
+    let (su, sv) = match &view.lens {
+        Some(lens) => lens.undistort(su, sv),
+        None => (su, sv),
+    };
     let Some(d) = view.distance_mm else {
-        let (cu, cv) = project(view, c);
+        let (cu, cv) = project_ideal(view, c);
         let r_px = radius_mm * view.px_per_mm;
         let (du, dv) = (su - cu, sv - cv);
         let rho2 = (du * du + dv * dv) / (r_px * r_px);
@@ -587,6 +612,7 @@ mod golden {
             v_axis: [0.0, -1.0, 0.0],
             facing: [0.0, 0.0, 1.0],
             distance_mm: None,
+            lens: None,
         };
         let scene = Scene {
             width: 96,
@@ -635,6 +661,93 @@ mod golden {
     #[test]
     fn without_a_look_the_frames_are_those_rendered_before_looks_existed() {
         assert_eq!(default_frame_hash(), 0xa816_a695_48c2_f482);
+    }
+
+    /// A lens's radial distortion moves a sphere's image where `Lens::distort` says: a still
+    /// sphere near a corner, rendered without noise through an ideal lens and through a
+    /// barrel one, its image's centroid against the distortion of its centre's projection.
+    #[test]
+    fn a_distorting_lens_moves_the_sphere_as_its_model_says() {
+        let centroid = |k1: f64| -> ((f64, f64), (f64, f64)) {
+            let (w, h) = (240u32, 192u32);
+            let lens = (k1 != 0.0).then_some(crate::config::Lens {
+                k1,
+                centre_px: [119.5, 95.5],
+                radius_px: 0.5 * 240f64.hypot(192.0),
+            });
+            let view = ViewSpec {
+                name: "direct".into(),
+                region: [0, 0, w, h],
+                px_per_mm: 2.1576,
+                origin_px: [119.5, 95.5],
+                u_axis: [1.0, 0.0, 0.0],
+                v_axis: [0.0, -1.0, 0.0],
+                facing: [0.0, 0.0, 1.0],
+                distance_mm: None,
+                lens,
+            };
+            let sphere = SphereSpec {
+                diameter_mm: 6.35,
+                mass_g: 0.3,
+            };
+            let scene = Scene {
+                width: w,
+                height: h,
+                frame_rate_hz: 1000.0,
+                bit_depth: 8,
+                views: vec![view.clone()],
+                spheres: [sphere.clone(), sphere],
+            };
+            let body = |p: V3| Body {
+                pos_mm: p,
+                vel_mm_s: V3::zeros(),
+                spin_rad_s: V3::zeros(),
+                orientation: nalgebra::UnitQuaternion::identity(),
+                radius_mm: 3.175,
+                mass_g: 0.3,
+            };
+            // Sphere a 40 mm left of and 30 mm above the centre (about 108 px out, 0.70 of
+            // the half-diagonal); b far out of the frame.
+            let a = V3::new(-40.0, 30.0, 0.0);
+            let state =
+                move |_t: f64| ([body(a), body(V3::new(500.0, 0.0, 0.0))], [vec![], vec![]]);
+            let cfg = LabConfig {
+                noise_sigma_grey: 0.0,
+                shot_noise_e_per_grey: 0.0,
+                ..LabConfig::default()
+            };
+            let bg = cfg.background_grey;
+            let mut r = Renderer::new(scene, cfg, 7);
+            let mut out = Vec::new();
+            r.render(0.001, &state, &mut out);
+            let (mut sw, mut su, mut sv) = (0.0, 0.0, 0.0);
+            for (i, &g) in out.iter().enumerate() {
+                let d = (g as f64 - bg).max(0.0);
+                sw += d;
+                su += d * (i % w as usize) as f64;
+                sv += d * (i / w as usize) as f64;
+            }
+            ((su / sw, sv / sw), project(&view, &a))
+        };
+        let (ideal, at_ideal) = centroid(0.0);
+        let (barrel, at_barrel) = centroid(-0.05);
+        // Without a lens the centroid is the projected centre.
+        assert!(
+            (ideal.0 - at_ideal.0).hypot(ideal.1 - at_ideal.1) < 0.02,
+            "{ideal:?} {at_ideal:?}"
+        );
+        // The barrel lens pulls the sphere 0.05·0.70²·108 ≈ 2.6 px towards the centre, and
+        // its image is where the lens model puts its centre's projection.
+        let moved = (barrel.0 - ideal.0).hypot(barrel.1 - ideal.1);
+        assert!(moved > 2.0, "moved {moved} px");
+        assert!(
+            barrel.0 > ideal.0 && barrel.1 > ideal.1,
+            "towards the centre: {barrel:?} {ideal:?}"
+        );
+        assert!(
+            (barrel.0 - at_barrel.0).hypot(barrel.1 - at_barrel.1) < 0.05,
+            "{barrel:?} against {at_barrel:?}"
+        );
     }
 
     /// A drawn look changes the frame (so the hash above would notice a look leaking into
