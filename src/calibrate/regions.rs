@@ -1,17 +1,19 @@
-//! The views' regions found from the frames alone: where the mirror's edge lies, and which side
-//! is the direct view.
+//! The views' regions found from the frames: where the mirror's edge lies.
 //!
 //! The whole frame is surveyed as one view (backdrop removed, so tube ends and the mirror's
 //! frame drop out) and the spheres' blobs are collected over the recording. The edge runs
 //! between two groups of blobs, across rows or across columns, that no blob straddles; of the
 //! candidate gaps, the one whose two sides show the same x (the spheres' u on one side a
 //! straight-line function of their u on the other, as a mirror view shows them) in the most
-//! frames is the mirror's edge. Within that gap, the edge is where the still background steps (a mirror
-//! reflects less than all of the light, and its frame shows), or, where nothing steps, the
-//! gap's end on the side whose spheres are cut off there (the direct view's when none are). Whether the views lie above each other or side by side, and which side is the direct
-//! view, are the config's to say (the side its direct region
-//! mostly covers), as the mirror's axes are: the spheres fall in both views when the mirror is
-//! tilted, and over a 40-frame recording round the impact the direct view's fall need not show.
+//! frames is the mirror's edge. Within that gap, the edge is where the still background steps
+//! (a mirror reflects less than all of the light, and its frame shows); where nothing steps, at
+//! the gap's end on the side whose spheres are cut off there (the direct view's when none are).
+//!
+//! Whether the views lie above each other or side by side, and which side is the direct view,
+//! are the config's to say (the side its direct region's middle lies on), as the mirror's axes
+//! are: the spheres fall in both views when the mirror is tilted, over a 40-frame recording
+//! round the impact the direct view's fall need not show, and two spheres that collide leave a
+//! gap of a pixel or two between them across which each side pairs as well as two views do.
 
 use crate::analysis::detect::Blob;
 use crate::analysis::{self, AnalysisError, FrameSource};
@@ -37,7 +39,7 @@ pub struct FoundSplit {
     pub across_rows: bool,
     /// The first row (or column) of the second view.
     pub edge_px: u32,
-    /// The background's step at the edge, grey levels, when one stood out.
+    /// The background's change of level across the edge, grey levels, when one stood out.
     pub step_grey: Option<f64>,
     /// Without a step: the side whose spheres are cut off at the gap (the edge is put there).
     pub cut_side: Option<Side>,
