@@ -405,3 +405,44 @@ pub struct Scene {
     /// Sphere a (released from the left tube) and sphere b.
     pub spheres: [SphereSpec; 2],
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{LabConfig, Lens};
+
+    #[test]
+    fn a_lens_beyond_its_range_is_refused_by_name() {
+        for k1 in [0.5, -0.25, f64::NAN] {
+            let cfg = LabConfig {
+                lens_k1: k1,
+                ..LabConfig::default()
+            };
+            let err = cfg.validate().expect_err("out of range");
+            assert!(err.contains("sim.lens_k1"), "{err}");
+        }
+        let cfg = LabConfig {
+            lens_k1: -0.05,
+            ..LabConfig::default()
+        };
+        assert!(cfg.validate().is_ok());
+    }
+
+    #[test]
+    fn undistort_inverts_distort_across_the_frame() {
+        for k1 in [-0.2, -0.05, 0.05, 0.2] {
+            let lens = Lens {
+                k1,
+                centre_px: [119.5, 95.5],
+                radius_px: 0.5 * 240f64.hypot(192.0),
+            };
+            for (u, v) in [(0.0, 0.0), (239.0, 191.0), (119.5, 95.5), (30.0, 150.0)] {
+                let (du, dv) = lens.distort(u, v);
+                let (bu, bv) = lens.undistort(du, dv);
+                assert!(
+                    (bu - u).hypot(bv - v) < 1e-6,
+                    "k1 {k1}: ({u}, {v}) → ({bu}, {bv})"
+                );
+            }
+        }
+    }
+}
