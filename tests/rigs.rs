@@ -222,6 +222,55 @@ fn the_shorthand_on_a_turned_rig_warns_and_calibrate_finds_its_maps() {
             "again",
         ],
     );
+    // calibrate says how well it knows each map, and the analysis carries that into every σ:
+    // σ(e)² is the σ(e)² of the same maps taken as exact plus each parameter's change of e.
+    let cal = std::fs::read_to_string(t.path().join("cal.toml")).unwrap();
+    let keys = ["px_per_mm_uncertainty_percent", "turn_uncertainty_deg"];
+    for key in keys {
+        let given = cal.lines().filter(|l| l.starts_with(key)).count();
+        assert_eq!(given, 2, "{key} for both views:\n{cal}");
+    }
+    let terms = calibrated["quality"]["calibration"]["geometry_uncertainty"]
+        .as_array()
+        .cloned()
+        .unwrap_or_default();
+    assert!(terms.len() >= 5, "scales and turns stepped: {terms:?}");
+    let exact: String = cal
+        .lines()
+        .filter(|l| !keys.iter().any(|k| l.starts_with(k)))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(t.path().join("cal_exact.toml"), exact).unwrap();
+    let as_exact = common::run_json(
+        t.path(),
+        &[
+            "analyze",
+            session.to_str().unwrap(),
+            "--config",
+            "cal_exact.toml",
+            "--json",
+            "--out",
+            "exact",
+        ],
+    );
+    assert!(as_exact["quality"]["calibration"]["geometry_uncertainty"]
+        .as_array()
+        .is_none_or(|a| a.is_empty()));
+    let sigma_e = |r: &Value| r["e"]["uncertainty"].as_f64().unwrap();
+    assert_eq!(calibrated["e"]["value"], as_exact["e"]["value"]);
+    let added: f64 = terms
+        .iter()
+        .filter_map(|t| t["e_change"].as_f64())
+        .map(|d| d * d)
+        .sum();
+    assert!(added > 0.0, "the maps' uncertainty moves e: {terms:?}");
+    let want = (sigma_e(&as_exact).powi(2) + added).sqrt();
+    assert!(
+        (sigma_e(&calibrated) - want).abs() <= 1e-9 * want,
+        "σ(e) {} with the maps' σ, {} as exact, {want} expected",
+        sigma_e(&calibrated),
+        sigma_e(&as_exact)
+    );
     for (key, bound) in [("e", 0.01), ("psi1", 0.05), ("psi2", 0.05)] {
         let x = calibrated[key]["value"].as_f64().unwrap();
         let t = truth[key].as_f64().unwrap();

@@ -106,6 +106,7 @@ pub(super) fn calibrate_mirror(obs: &[FrameObs], views: &mut [View]) -> Option<C
         residual_per_mm_of_y: None,
         residual_per_mm_of_z: None,
         free_fall: Vec::new(),
+        geometry_uncertainty: Vec::new(),
     })
 }
 

@@ -270,6 +270,34 @@ impl View {
         true
     }
 
+    /// This view of a world turned by `r` and scaled by `scale` about the world origin before it
+    /// is imaged: [u, v] = M·(scale·R·p) + origin. Always a general (not shorthand) map, so
+    /// that a turned view and an unturned one compare through the same formulas.
+    pub fn turned(&self, r: &nalgebra::Matrix3<f64>, scale: f64) -> View {
+        let g = match &self.map {
+            Map::Affine { m, origin } => {
+                let t = m * r * scale;
+                crate::config::ViewGeometry {
+                    region: self.region,
+                    origin_px: Some([origin[0], origin[1]]),
+                    matrix_px_per_mm: Some([0, 1].map(|i| [0, 1, 2].map(|j| t[(i, j)]))),
+                    ..Default::default()
+                }
+            }
+            Map::Pinhole { p } => {
+                let t = p.fixed_columns::<3>(0) * r * scale;
+                crate::config::ViewGeometry {
+                    region: self.region,
+                    projection: Some(
+                        [0, 1, 2].map(|i| [t[(i, 0)], t[(i, 1)], t[(i, 2)], p[(i, 3)]]),
+                    ),
+                    ..Default::default()
+                }
+            }
+        };
+        View::from_config(self.kind, &g)
+    }
+
     pub fn contains(&self, u: f64, v: f64) -> bool {
         let [x, y, w, h] = self.region;
         u >= x as f64 - 0.5

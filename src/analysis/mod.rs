@@ -13,6 +13,7 @@ pub(crate) mod calibration;
 pub mod circle;
 pub mod detect;
 pub mod geometry;
+mod geometry_sigma;
 pub mod image;
 mod impulse;
 pub mod kinematics;
@@ -150,13 +151,19 @@ pub fn analyze_detailed(
         warnings: warnings.clone(),
         frames_dropped,
     };
+    // The first pass's report is final only where it finds no dots on a rim; the geometry's
+    // uncertainty (re-running the fits) is added to the final one only.
     let first = stages::timed(stages::Stage::Fits, || {
-        analyze_observations(input(), obs, unmeasured, views.clone(), cfg)
+        observations_once(input(), obs.clone(), unmeasured.clone(), views.clone(), cfg)
     })?;
     let dots = rim_dots(&first.1, cfg);
     if dots.is_empty() {
         progress(src.len(), src.len());
-        return Ok(first);
+        let (mut report, details) = first;
+        stages::timed(stages::Stage::Fits, || {
+            add_geometry_uncertainty(&mut report, &input(), &obs, &views, cfg)
+        });
+        return Ok((report, details));
     }
     stages::set_pass(1);
     let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, &dots, &memo, &mut |i, n| {
@@ -175,15 +182,57 @@ pub fn analyze_tracks(path: &std::path::Path, cfg: &Config) -> Result<Report, An
 }
 
 /// What the analysis needs to know about its input besides the measurements.
+#[derive(Clone)]
 pub struct Input {
     pub info: Source,
     pub warnings: Vec<String>,
     pub frames_dropped: u64,
 }
 
-/// Everything after per-frame measurement: calibration, fits, impact, spins, the report. Also
-/// the entry point for centres digitised elsewhere (`tracks`).
+/// Everything after per-frame measurement: calibration, fits, impact, spins, the report, with
+/// the geometry's own uncertainty in every estimate (`geometry_sigma`). Also the entry point
+/// for centres digitised elsewhere (`tracks`).
 pub fn analyze_observations(
+    input: Input,
+    obs: Vec<FrameObs>,
+    unmeasured: Vec<Unmeasured>,
+    views: Vec<View>,
+    cfg: &Config,
+) -> Result<(Report, Details), AnalysisError> {
+    let (mut report, details) =
+        observations_once(input.clone(), obs.clone(), unmeasured, views.clone(), cfg)?;
+    add_geometry_uncertainty(&mut report, &input, &obs, &views, cfg);
+    Ok((report, details))
+}
+
+/// Re-runs the analysis of the observations with each geometry parameter whose uncertainty the
+/// config gives stepped by it, and widens every estimate's σ by what that changed.
+fn add_geometry_uncertainty(
+    report: &mut Report,
+    input: &Input,
+    obs: &[FrameObs],
+    views: &[View],
+    cfg: &Config,
+) {
+    let terms = geometry_sigma::terms(&cfg.geometry);
+    if terms.is_empty() {
+        return;
+    }
+    let run = |term: Option<&geometry_sigma::Term>| {
+        let views = geometry_sigma::turned_views(views, term);
+        observations_once(input.clone(), obs.to_vec(), Vec::new(), views, cfg)
+            .ok()
+            .map(|r| r.0)
+    };
+    let Some(baseline) = run(None) else {
+        return;
+    };
+    let turned: Vec<Option<Report>> = terms.iter().map(|t| run(Some(t))).collect();
+    geometry_sigma::widen(report, &terms, &baseline, &turned);
+}
+
+/// Everything after per-frame measurement, the config's geometry taken as exact.
+fn observations_once(
     input: Input,
     obs: Vec<FrameObs>,
     unmeasured: Vec<Unmeasured>,

@@ -215,6 +215,22 @@ pub struct Calibration {
     /// y and 0 along x and z for a right geometry; a turned or mis-scaled view shows here.
     #[serde(default)]
     pub free_fall: Vec<FreeFall>,
+    /// The geometry's parameters whose uncertainty the config gives, each with the step the
+    /// analysis was re-run with and what that step changed e by; every estimate's uncertainty
+    /// includes these changes (`geometry_sigma`). Empty for a config that gives none.
+    #[serde(default)]
+    pub geometry_uncertainty: Vec<GeometryTerm>,
+}
+
+/// One parameter of the configured geometry and what its uncertainty does.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct GeometryTerm {
+    /// The config key, e.g. "geometry.direct.turn_uncertainty_deg[2]" (the camera's roll).
+    pub parameter: String,
+    /// The step the analysis was re-run with: rad for a turn, a fraction for a scale.
+    pub step: f64,
+    /// |change of e| that step made (null where e was not measured both ways).
+    pub e_change: Option<f64>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

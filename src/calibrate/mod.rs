@@ -408,6 +408,13 @@ pub fn calibrate(
         )),
         mirror: None,
     };
+    // How well each map is known, for the analysis to carry into its estimates' σ. The direct
+    // camera's pitch and yaw are not determined (see the docs) and are left at 0.
+    if let Some(v) = geometry.direct.as_mut() {
+        v.px_per_mm_uncertainty_percent =
+            Some(100.0 * bundle.direct_scale.sigma / bundle.direct_scale.value);
+        v.turn_uncertainty_deg = Some([0.0, 0.0, bundle.direct_roll.sigma]);
+    }
     let mut mirror = None;
     if let (Some(mi), Some(mut fit)) = (mi, bundle.mirror) {
         let region = cfg
@@ -425,13 +432,13 @@ pub fn calibrate(
             f,
         );
         let origin = [fit.origin_u_px.value, views[mi].origin_px[1]];
-        geometry.mirror = Some(view_geometry(
-            region,
-            m,
-            origin,
-            ViewKind::Mirror,
-            bundle.kappa[1],
-        ));
+        let mut mirror_geometry =
+            view_geometry(region, m, origin, ViewKind::Mirror, bundle.kappa[1]);
+        mirror_geometry.px_per_mm_uncertainty_percent =
+            Some(100.0 * fit.scale.sigma / fit.scale.value);
+        mirror_geometry.turn_uncertainty_deg =
+            Some([fit.tilt_deg.sigma, fit.roll_deg.sigma, fit.yaw_deg.sigma]);
+        geometry.mirror = Some(mirror_geometry);
         fit.camera_distance_mm = distance(bundle.kappa[1]);
         if let Some(d) = diameter_scale(obs, mi, diam) {
             fit.scale_from_diameter = d;

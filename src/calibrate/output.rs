@@ -54,20 +54,10 @@ impl Calibrated {
                 m.points
             );
         }
-        // The analysis's σ does not include the geometry's: say how far the turns are known.
-        let worst = self
-            .mirror
-            .iter()
-            .flat_map(|m| [m.tilt_deg.sigma, m.roll_deg.sigma, m.yaw_deg.sigma])
-            .chain([d.roll_deg.sigma])
-            .fold(0.0, f64::max);
-        if worst > 0.1 {
-            out += &format!(
-                "# note: the views' turns are known to ±{worst:.2}°, which the analysis's σ does not include;\n\
-                 #   on oblique impacts (ψ1 above 1) 0.2–0.6° moved e by 0.02–0.04 on the validation\n\
-                 #   recordings: calibrate on more recordings of the rig to narrow it\n"
-            );
-        }
+        out +=
+            "# px_per_mm_uncertainty_percent and turn_uncertainty_deg (about world x, y, z) are\n\
+                #   the σ above; the analysis carries them into every estimate's uncertainty. The\n\
+                #   direct camera's pitch and yaw (about x, y) are not determined here (0).\n";
         for (name, v) in [
             ("direct", &self.geometry.direct),
             ("mirror", &self.geometry.mirror),
@@ -84,6 +74,7 @@ impl Calibrated {
                     v.region[0], v.region[1], v.region[2], v.region[3],
                     row(p[0]), row(p[1]), row3(p[2])
                 );
+                out += &uncertainty_keys(v);
                 continue;
             }
             let (Some(m), Some(o)) = (v.matrix_px_per_mm, v.origin_px) else {
@@ -101,6 +92,7 @@ impl Calibrated {
                 o[0],
                 o[1]
             );
+            out += &uncertainty_keys(v);
         }
         out
     }
@@ -140,4 +132,16 @@ impl Calibrated {
         }
         r.png().map_err(|e| format!("PNG: {e}"))
     }
+}
+
+/// The two keys that say how well a view's map is known (none where calibrate set none).
+fn uncertainty_keys(v: &crate::config::ViewGeometry) -> String {
+    let mut out = String::new();
+    if let Some(p) = v.px_per_mm_uncertainty_percent {
+        out += &format!("px_per_mm_uncertainty_percent = {p:.4}\n");
+    }
+    if let Some([x, y, z]) = v.turn_uncertainty_deg {
+        out += &format!("turn_uncertainty_deg = [{x:.4}, {y:.4}, {z:.4}]\n");
+    }
+    out
 }

@@ -286,6 +286,15 @@ pub struct ViewGeometry {
     /// Pinhole view: world mm → homogeneous px, 3×4 (DLT convention).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub projection: Option<[[f64; 4]; 3]>,
+    /// How well this view's scale is known, % (one σ; `impactcam calibrate` writes it, or a
+    /// ruler's reading). The analysis carries it into every estimate's uncertainty.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub px_per_mm_uncertainty_percent: Option<f64>,
+    /// How well this view's turn is known, deg (one σ), about world x, y and z: a turn of the
+    /// world before the view images it. The analysis carries it into every estimate's
+    /// uncertainty.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub turn_uncertainty_deg: Option<[f64; 3]>,
 }
 
 impl ViewGeometry {
@@ -679,6 +688,40 @@ mod tests {
             ("", "geometry.mirror: no map"),
         ] {
             let e = mirror_with(keys).unwrap_or_else(|| panic!("{keys}: accepted"));
+            assert!(e.contains(expect), "{keys}: {e}");
+        }
+    }
+
+    #[test]
+    fn how_well_a_map_is_known_is_read_and_bad_values_named() {
+        let map = "px_per_mm=2.0\norigin_px=[120.0,140.0]\nu_axis=\"+x\"\nv_axis=\"+z\"";
+        let t = format!("[geometry.mirror]\nregion=[0,96,240,96]\n{map}\npx_per_mm_uncertainty_percent = 0.2\nturn_uncertainty_deg = [0.1, 0.0, 0.05]\n");
+        let c = Config::from_toml_str(&t, "x.toml").unwrap();
+        let m = c.geometry.mirror.as_ref().unwrap();
+        assert_eq!(m.px_per_mm_uncertainty_percent, Some(0.2));
+        assert_eq!(m.turn_uncertainty_deg, Some([0.1, 0.0, 0.05]));
+        assert_eq!(Config::from_toml_str(&c.to_toml(), "again").unwrap(), c);
+        for (keys, expect) in [
+            (
+                "px_per_mm_uncertainty_percent = -1.0",
+                "geometry.mirror.px_per_mm_uncertainty_percent: -1 is out of range",
+            ),
+            (
+                "px_per_mm_uncertainty_percent = 25.0",
+                "geometry.mirror.px_per_mm_uncertainty_percent: 25 is out of range",
+            ),
+            (
+                "turn_uncertainty_deg = [0.1, 12.0, 0.0]",
+                "geometry.mirror.turn_uncertainty_deg: [0.1, 12.0, 0.0] is out of range",
+            ),
+            // (serde's own words, with the file and line)
+            (
+                "turn_uncertainty_deg = [0.1, 0.2]",
+                "x.toml: invalid length 2, expected an array of length 3 (line",
+            ),
+        ] {
+            let e = mirror_with(&format!("{map}\n{keys}"))
+                .unwrap_or_else(|| panic!("{keys}: accepted"));
             assert!(e.contains(expect), "{keys}: {e}");
         }
     }

@@ -147,6 +147,7 @@ impl Config {
                 ));
             }
             check_view_map(&key, v, plane)?;
+            check_geometry_uncertainty(&key, v)?;
         }
         for i in 0..2 {
             let (d, m) = self.spheres.sphere(i);
@@ -204,6 +205,27 @@ impl Config {
         }
         Ok(())
     }
+}
+
+/// How well a view's map is known: a scale within 20 % and turns within 10° (a map known worse
+/// than that is not a map; the re-run that carries it into the estimates is linear only for
+/// small steps).
+fn check_geometry_uncertainty(key: &str, v: &ViewGeometry) -> Result<(), String> {
+    if let Some(p) = v.px_per_mm_uncertainty_percent {
+        if !(p.is_finite() && (0.0..=20.0).contains(&p)) {
+            return Err(format!(
+                "{key}.px_per_mm_uncertainty_percent: {p} is out of range, expected 0 to 20 (one σ of the scale, %)"
+            ));
+        }
+    }
+    if let Some(t) = v.turn_uncertainty_deg {
+        if !t.iter().all(|d| d.is_finite() && (0.0..=10.0).contains(d)) {
+            return Err(format!(
+                "{key}.turn_uncertainty_deg: {t:?} is out of range, expected three numbers from 0 to 10 (one σ of the turn about world x, y, z, deg)"
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// One view's map: exactly one of the three forms, complete, finite, of rank 2, and seeing the

@@ -1,0 +1,165 @@
+//! The configured geometry's own uncertainty, carried into every estimate. The fits take the
+//! config's maps as exact, but the maps come from a measurement (`impactcam calibrate`, a ruler,
+//! a target) that knows them only so well. Where the config says how well
+//! (`px_per_mm_uncertainty_percent`, `turn_uncertainty_deg`, which calibrate writes), each such
+//! parameter is stepped by its σ, the analysis after the per-frame measurement is run again with
+//! the stepped view, and each estimate's change is added to its variance. A config that says
+//! nothing is taken as exact, as before; the recording's own checks of the geometry
+//! (`calibration::check_geometry`) still warn when it is not.
+
+use super::geometry::{View, ViewKind};
+use super::report::{GeometryTerm, Report, Scalar, Vector};
+use crate::config::Geometry;
+use nalgebra::{Matrix3, Rotation3, Vector3};
+
+/// One parameter of a view's map and its one-σ step.
+#[derive(Clone, Debug)]
+pub(super) struct Term {
+    view: ViewKind,
+    /// World axis the view is turned about, or None for its scale.
+    axis: Option<usize>,
+    /// The step: rad for a turn, a fraction for the scale.
+    size: f64,
+    /// The config key it comes from.
+    key: String,
+}
+
+/// The parameters whose uncertainty the config gives (zeros left out).
+pub(super) fn terms(geometry: &Geometry) -> Vec<Term> {
+    let mut out = Vec::new();
+    for (kind, name, v) in [
+        (ViewKind::Direct, "direct", &geometry.direct),
+        (ViewKind::Mirror, "mirror", &geometry.mirror),
+    ] {
+        let Some(v) = v else { continue };
+        if let Some(p) = v.px_per_mm_uncertainty_percent.filter(|p| *p > 0.0) {
+            out.push(Term {
+                view: kind,
+                axis: None,
+                size: p / 100.0,
+                key: format!("geometry.{name}.px_per_mm_uncertainty_percent"),
+            });
+        }
+        for (i, d) in v
+            .turn_uncertainty_deg
+            .unwrap_or_default()
+            .iter()
+            .enumerate()
+        {
+            if *d > 0.0 {
+                out.push(Term {
+                    view: kind,
+                    axis: Some(i),
+                    size: d.to_radians(),
+                    key: format!("geometry.{name}.turn_uncertainty_deg[{i}]"),
+                });
+            }
+        }
+    }
+    out
+}
+
+/// Every view through the general map, the one `term` names turned by its step (none turned
+/// without a term: the baseline the turned runs are compared with).
+pub(super) fn turned_views(views: &[View], term: Option<&Term>) -> Vec<View> {
+    views
+        .iter()
+        .map(|v| {
+            let (r, scale) = match term {
+                Some(t) if t.view == v.kind => match t.axis {
+                    Some(i) => {
+                        let axis = Vector3::ith_axis(i);
+                        (Rotation3::from_axis_angle(&axis, t.size).into_inner(), 1.0)
+                    }
+                    None => (Matrix3::identity(), 1.0 + t.size),
+                },
+                _ => (Matrix3::identity(), 1.0),
+            };
+            v.turned(&r, scale)
+        })
+        .collect()
+}
+
+/// Adds to each estimate's variance the squared change each turned run made to it (against
+/// the unturned run through the same formulas), and records the terms in the calibration.
+/// A run that failed, or an estimate one run lacks, adds nothing for that term.
+pub(super) fn widen(
+    report: &mut Report,
+    terms: &[Term],
+    baseline: &Report,
+    turned: &[Option<Report>],
+) {
+    let zero = values(baseline);
+    let runs: Vec<Option<Vec<Option<f64>>>> =
+        turned.iter().map(|r| r.as_ref().map(values)).collect();
+    let shift = |k: usize, i: usize| -> Option<f64> {
+        let t = runs.get(k)?.as_ref()?;
+        let d = t.get(i).copied().flatten()? - zero.get(i).copied().flatten()?;
+        d.is_finite().then_some(d)
+    };
+    let mut i = 0;
+    visit(report, &mut |e| {
+        if let Some((_, sigma)) = e {
+            let extra: f64 = (0..runs.len())
+                .filter_map(|k| shift(k, i))
+                .map(|d| d * d)
+                .sum();
+            *sigma = (*sigma * *sigma + extra).sqrt();
+        }
+        i += 1;
+    });
+    // Index of e among the visited components: impact time, then the normal's three.
+    let e_index = 4;
+    if let Some(c) = report.quality.calibration.as_mut() {
+        c.geometry_uncertainty = terms
+            .iter()
+            .enumerate()
+            .map(|(k, t)| GeometryTerm {
+                parameter: t.key.clone(),
+                step: t.size,
+                e_change: shift(k, e_index).map(f64::abs),
+            })
+            .collect();
+    }
+}
+
+/// Every estimate's value in the fixed order `visit` walks them (None where it is null).
+fn values(r: &Report) -> Vec<Option<f64>> {
+    let mut r = r.clone();
+    let mut out = Vec::new();
+    visit(&mut r, &mut |e| out.push(e.map(|(v, _)| *v)));
+    out
+}
+
+type Visitor<'a> = dyn FnMut(Option<(&mut f64, &mut f64)>) + 'a;
+
+/// Walks every estimate component of a report in a fixed order, a null one as None (one call
+/// per component it would have), so that two reports' walks line up.
+fn visit(r: &mut Report, f: &mut Visitor) {
+    fn scalar(e: Option<&mut Scalar>, f: &mut Visitor) {
+        f(e.map(|e| (&mut e.value, &mut e.uncertainty)));
+    }
+    fn vector(e: Option<&mut Vector>, f: &mut Visitor) {
+        match e {
+            Some(e) => {
+                for (v, s) in e.value.iter_mut().zip(e.uncertainty.iter_mut()) {
+                    f(Some((v, s)));
+                }
+            }
+            None => (0..3).for_each(|_| f(None)),
+        }
+    }
+    scalar(Some(&mut r.impact.time_s), f);
+    vector(Some(&mut r.normal), f);
+    scalar(r.e.as_mut(), f);
+    scalar(r.beta.as_mut(), f);
+    scalar(r.psi1.as_mut(), f);
+    scalar(r.psi2.as_mut(), f);
+    for s in [&mut r.spheres.a, &mut r.spheres.b] {
+        vector(s.position_impact_mm.as_mut(), f);
+        vector(Some(&mut s.velocity_pre_mm_s), f);
+        vector(Some(&mut s.velocity_post_mm_s), f);
+        vector(s.spin_pre_rad_s.as_mut(), f);
+        vector(s.spin_post_rad_s.as_mut(), f);
+    }
+}
