@@ -163,3 +163,51 @@ fn visit(r: &mut Report, f: &mut Visitor) {
         vector(s.spin_post_rad_s.as_mut(), f);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Config;
+
+    #[test]
+    fn the_configs_uncertainties_become_steps_and_a_step_turns_the_world_the_view_sees() {
+        let mut cfg = Config::default_config();
+        let direct = cfg.geometry.direct.as_mut().unwrap();
+        direct.px_per_mm_uncertainty_percent = Some(0.5);
+        direct.turn_uncertainty_deg = Some([0.0, 0.0, 0.2]);
+        cfg.geometry.mirror.as_mut().unwrap().turn_uncertainty_deg = Some([0.3, 0.0, 0.0]);
+        let terms = terms(&cfg.geometry);
+        let keys: Vec<&str> = terms.iter().map(|t| t.key.as_str()).collect();
+        assert_eq!(
+            keys,
+            [
+                "geometry.direct.px_per_mm_uncertainty_percent",
+                "geometry.direct.turn_uncertainty_deg[2]",
+                "geometry.mirror.turn_uncertainty_deg[0]",
+            ]
+        );
+        assert!((terms[0].size - 0.005).abs() < 1e-15);
+        assert!((terms[1].size - 0.2f64.to_radians()).abs() < 1e-15);
+
+        let views = super::super::geometry::views(&cfg);
+        let p = nalgebra::Vector3::new(7.0, -3.0, 2.0);
+        // Unturned through the general map: where the shorthand puts every point.
+        for (a, b) in views.iter().zip(turned_views(&views, None)) {
+            let (x, y) = (a.project(&p), b.project(&p));
+            assert!((x[0] - y[0]).abs() < 1e-9 && (x[1] - y[1]).abs() < 1e-9);
+        }
+        // The roll's step: the direct view sees the world turned about z; the mirror is not
+        // touched.
+        let turned = turned_views(&views, Some(&terms[1]));
+        let r = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.2f64.to_radians());
+        let (want, got) = (views[0].project(&(r * p)), turned[0].project(&p));
+        assert!((want[0] - got[0]).abs() < 1e-9 && (want[1] - got[1]).abs() < 1e-9);
+        assert!((want[0] - views[0].project(&p)[0]).abs() > 1e-3, "the step moves it");
+        let (m0, m1) = (views[1].project(&p), turned[1].project(&p));
+        assert!((m0[0] - m1[0]).abs() < 1e-9 && (m0[1] - m1[1]).abs() < 1e-9);
+        // The scale's step.
+        let scaled = turned_views(&views, Some(&terms[0]));
+        let (want, got) = (views[0].project(&(p * 1.005)), scaled[0].project(&p));
+        assert!((want[0] - got[0]).abs() < 1e-9 && (want[1] - got[1]).abs() < 1e-9);
+    }
+}
