@@ -163,6 +163,25 @@ pub fn calibrate_paths(
     Ok((cal, png))
 }
 
+/// A scale's σ, %, as the config accepts it: at most 20 (a fit that knows the scale worse, or
+/// not at all, says 20 rather than writing a config the analysis would refuse).
+fn percent_known(p: f64) -> f64 {
+    if p.is_finite() {
+        p.abs().min(20.0)
+    } else {
+        20.0
+    }
+}
+
+/// A turn's σ, deg, as the config accepts it: at most 10 (as `percent_known`).
+fn degrees_known(d: f64) -> f64 {
+    if d.is_finite() {
+        d.abs().min(10.0)
+    } else {
+        10.0
+    }
+}
+
 /// Fits the views' maps from one or more recordings of one rig (the first sets the
 /// provisional scale; the flights of all are fitted together).
 pub fn calibrate(
@@ -411,9 +430,10 @@ pub fn calibrate(
     // How well each map is known, for the analysis to carry into its estimates' σ. The direct
     // camera's pitch and yaw are not determined (see the docs) and are left at 0.
     if let Some(v) = geometry.direct.as_mut() {
-        v.px_per_mm_uncertainty_percent =
-            Some(100.0 * bundle.direct_scale.sigma / bundle.direct_scale.value);
-        v.turn_uncertainty_deg = Some([0.0, 0.0, bundle.direct_roll.sigma]);
+        v.px_per_mm_uncertainty_percent = Some(percent_known(
+            100.0 * bundle.direct_scale.sigma / bundle.direct_scale.value,
+        ));
+        v.turn_uncertainty_deg = Some([0.0, 0.0, degrees_known(bundle.direct_roll.sigma)]);
     }
     let mut mirror = None;
     if let (Some(mi), Some(mut fit)) = (mi, bundle.mirror) {
@@ -435,9 +455,9 @@ pub fn calibrate(
         let mut mirror_geometry =
             view_geometry(region, m, origin, ViewKind::Mirror, bundle.kappa[1]);
         mirror_geometry.px_per_mm_uncertainty_percent =
-            Some(100.0 * fit.scale.sigma / fit.scale.value);
+            Some(percent_known(100.0 * fit.scale.sigma / fit.scale.value));
         mirror_geometry.turn_uncertainty_deg =
-            Some([fit.tilt_deg.sigma, fit.roll_deg.sigma, fit.yaw_deg.sigma]);
+            Some([fit.tilt_deg.sigma, fit.roll_deg.sigma, fit.yaw_deg.sigma].map(degrees_known));
         geometry.mirror = Some(mirror_geometry);
         fit.camera_distance_mm = distance(bundle.kappa[1]);
         if let Some(d) = diameter_scale(obs, mi, diam) {
@@ -462,4 +482,33 @@ pub fn calibrate(
         mirror,
         geometry,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What calibrate writes for how well it knows a map is always a value the config accepts:
+    /// the analysis must not refuse the config calibrate printed.
+    #[test]
+    fn how_well_a_map_is_known_is_written_within_the_configs_bounds() {
+        let toml = |p: f64, d: f64| {
+            format!(
+                "[geometry.direct]\nregion = [0, 0, 240, 96]\npx_per_mm = 2.0\norigin_px = [120.0, 48.0]\nu_axis = \"+x\"\nv_axis = \"-y\"\npx_per_mm_uncertainty_percent = {}\nturn_uncertainty_deg = [0.0, 0.0, {}]\n",
+                percent_known(p),
+                degrees_known(d)
+            )
+        };
+        for (p, d) in [
+            (0.21, 0.088),
+            (35.0, 12.0),
+            (f64::NAN, f64::INFINITY),
+            (-0.3, -0.1),
+        ] {
+            let t = toml(p, d);
+            assert!(Config::from_toml_str(&t, "cal.toml").is_ok(), "{t}");
+        }
+        assert_eq!(percent_known(0.21), 0.21);
+        assert_eq!(degrees_known(f64::NAN), 10.0);
+    }
 }
