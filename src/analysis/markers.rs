@@ -56,7 +56,7 @@ pub fn find(
         (cv - inner).floor().max(0.0) as usize,
         ((cv + inner).ceil() as usize).min(img.height - 1),
     );
-    let Some(shading) = Shading::fit(img, disc, outer, noise_sigma) else {
+    let Some(shading) = Shading::fit(img, [cu, cv], r, outer, noise_sigma) else {
         return Vec::new();
     };
     let expected = |u: f64, v: f64| shading.at(u, v);
@@ -284,47 +284,33 @@ pub(super) fn drop_in_the_other_disc(obs: &mut [super::tracking::FrameObs]) {
 struct Shading {
     centre: [f64; 2],
     radius: f64,
-    /// The disc's fitted edge width (its logistic step's s), px; 0 for a sharp edge.
-    edge_width: f64,
-    p: nalgebra::SVector<f64, 6>,
+    p: nalgebra::SVector<f64, 5>,
     /// The robust scatter of the disc's pixels about the fit (floored at 0.5 grey level).
     sigma: f64,
 }
 
 impl Shading {
-    fn basis(&self, u: f64, v: f64) -> nalgebra::SVector<f64, 6> {
-        Self::basis_of(self.centre, self.radius, self.edge_width, u, v)
+    fn basis(&self, u: f64, v: f64) -> nalgebra::SVector<f64, 5> {
+        Self::basis_of(self.centre, self.radius, u, v)
     }
 
-    /// The shading's terms (1, n, n², x, y) times the edge's step (the circle fit's logistic
-    /// of width `edge_width`), and the ground's level where the step lets it through. Why the
-    /// step: a blurred edge darkens the disc's last pixel or two, which the shading's terms
-    /// alone cannot follow; that shortfall reads as darkness on the rim, where it makes dots
-    /// that are not there and pulls real ones towards the limb.
-    fn basis_of(
-        centre: [f64; 2],
-        radius: f64,
-        edge_width: f64,
-        u: f64,
-        v: f64,
-    ) -> nalgebra::SVector<f64, 6> {
-        let (du, dv) = (u - centre[0], v - centre[1]);
-        let (x, y) = (du / radius, dv / radius);
+    fn basis_of(centre: [f64; 2], radius: f64, u: f64, v: f64) -> nalgebra::SVector<f64, 5> {
+        let (x, y) = ((u - centre[0]) / radius, (v - centre[1]) / radius);
         let n = (1.0 - (x * x + y * y)).max(0.0).sqrt();
-        let l = if edge_width > 0.0 {
-            1.0 / (1.0 + (-(radius - du.hypot(dv)) / edge_width).exp())
-        } else {
-            1.0
-        };
-        nalgebra::SVector::<f64, 6>::from([l, l * n, l * n * n, l * x, l * y, 1.0 - l])
+        nalgebra::SVector::<f64, 5>::new(1.0, n, n * n, x, y)
     }
 
     fn at(&self, u: f64, v: f64) -> f64 {
         self.basis(u, v).dot(&self.p)
     }
 
-    fn fit(img: &GreyImage, disc: &CircleFit, within: f64, noise_sigma: f64) -> Option<Shading> {
-        let (centre, radius, edge_width) = (disc.centre, disc.radius, disc.edge_width_px);
+    fn fit(
+        img: &GreyImage,
+        centre: [f64; 2],
+        radius: f64,
+        within: f64,
+        noise_sigma: f64,
+    ) -> Option<Shading> {
         let (u0, u1) = (
             (centre[0] - within).floor().max(0.0) as usize,
             ((centre[0] + within).ceil() as usize).min(img.width.saturating_sub(1)),
@@ -333,13 +319,13 @@ impl Shading {
             (centre[1] - within).floor().max(0.0) as usize,
             ((centre[1] + within).ceil() as usize).min(img.height.saturating_sub(1)),
         );
-        let mut pix: Vec<(nalgebra::SVector<f64, 6>, f64)> = Vec::new();
+        let mut pix: Vec<(nalgebra::SVector<f64, 5>, f64)> = Vec::new();
         for v in v0..=v1 {
             for u in u0..=u1 {
                 let (fu, fv) = (u as f64, v as f64);
                 if (fu - centre[0]).hypot(fv - centre[1]) < within {
                     pix.push((
-                        Self::basis_of(centre, radius, edge_width, fu, fv),
+                        Self::basis_of(centre, radius, fu, fv),
                         img.lit_at(u, v) as f64,
                     ));
                 }
@@ -349,8 +335,8 @@ impl Shading {
         let mut p = None;
         let mut own_sigma = noise_sigma;
         for _ in 0..4 {
-            let mut ata = nalgebra::SMatrix::<f64, 6, 6>::zeros();
-            let mut atb = nalgebra::SVector::<f64, 6>::zeros();
+            let mut ata = nalgebra::SMatrix::<f64, 5, 5>::zeros();
+            let mut atb = nalgebra::SVector::<f64, 5>::zeros();
             let mut n = 0;
             for ((a, b), k) in pix.iter().zip(&keep) {
                 if *k {
@@ -362,9 +348,6 @@ impl Shading {
             if n < 12 {
                 return None;
             }
-            // Under a sharp edge the ground's term is nothing inside the disc: a small ridge
-            // holds its level at 0 there instead of leaving the system singular.
-            ata[(5, 5)] += 1e-9 * ata[(0, 0)].max(1.0);
             let sol = ata.lu().solve(&atb)?;
             let res: Vec<f64> = pix.iter().map(|(a, b)| b - a.dot(&sol)).collect();
             let mut abs: Vec<f64> = res
@@ -393,7 +376,6 @@ impl Shading {
         Some(Shading {
             centre,
             radius,
-            edge_width,
             p: p?,
             sigma: own_sigma,
         })
@@ -408,59 +390,6 @@ mod tests {
     use crate::config::ViewGeometry;
     use hw_sim::physics::Body;
     use nalgebra::UnitQuaternion;
-
-    /// A bright disc whose edge is blurred (a logistic of width 0.8 px), shaded brighter in
-    /// the middle, no dots: with the edge's step in the model, the shading follows the blurred
-    /// rim (0.5 grey levels at most below it here); with the shading's terms alone, the rim
-    /// falls short of the model by about four times that.
-    #[test]
-    fn a_blurred_rim_is_not_taken_for_darkness() {
-        let (w, h, r, s) = (40usize, 40usize, 9.0f64, 0.8f64);
-        let c = [19.6, 20.3];
-        let mut raw = vec![0u8; w * h];
-        for v in 0..h {
-            for u in 0..w {
-                let rho = (u as f64 - c[0]).hypot(v as f64 - c[1]);
-                let n = (1.0 - (rho / r).powi(2)).max(0.0).sqrt();
-                let l = 1.0 / (1.0 + (-(r - rho) / s).exp());
-                raw[v * w + u] = (20.0 + l * (100.0 + 120.0 * n)).round() as u8;
-            }
-        }
-        let mut img = GreyImage::new();
-        img.load(&raw, w, h, 1);
-        let disc = |edge_width_px: f64| CircleFit {
-            centre: c,
-            radius: r,
-            centre_sigma: [0.01, 0.01],
-            radius_sigma: 0.01,
-            rms_px: 0.0,
-            points_used: 100,
-            points_total: 100,
-            arc_sectors: 36,
-            grey_levels: true,
-            edge_width_px,
-        };
-        // The largest shortfall below the model inside the disc's marker area, grey levels.
-        let shortfall = |edge_width_px: f64| {
-            let sh = Shading::fit(&img, &disc(edge_width_px), r - 0.5, 1.0).unwrap();
-            let mut worst = 0.0f64;
-            for v in 0..h {
-                for u in 0..w {
-                    let rho = (u as f64 - c[0]).hypot(v as f64 - c[1]);
-                    if rho < r - 1.0 {
-                        worst = worst.max(sh.at(u as f64, v as f64) - img.lit_at(u, v) as f64);
-                    }
-                }
-            }
-            worst
-        };
-        let (with_step, without) = (shortfall(s), shortfall(0.0));
-        assert!(with_step < 1.0, "with the step: {with_step:.2} grey levels");
-        assert!(
-            without > 3.0 * with_step,
-            "without: {without:.2}, with: {with_step:.2}"
-        );
-    }
 
     /// A still sphere rendered by the simulator with one marker at a known angle from the view
     /// axis: the marker's measured position against its true projection, radial part (+ out).

@@ -140,7 +140,6 @@ pub fn robust_fit(points: &[[f64; 2]], oversampling: f64) -> Option<CircleFit> {
         points_total: points.len(),
         arc_sectors: sectors_covered(&keep, c),
         grey_levels: false,
-        edge_width_px: 0.0,
     })
 }
 
@@ -319,7 +318,6 @@ pub fn fit_edges(
                         points_total: pts.len(),
                         arc_sectors: sectors_covered(&pts, centre),
                         grey_levels: false,
-                        edge_width_px: 0.0,
                     },
                     true,
                 ));
@@ -396,7 +394,6 @@ pub fn fit_fixed_radius(
             points_total: points.len(),
             arc_sectors: sectors_covered(&keep, c),
             grey_levels: false,
-            edge_width_px: 0.0,
         });
         let limit = (3.0 * s2.sqrt()).max(0.1);
         let before = keep.len();

@@ -40,9 +40,6 @@ pub struct CircleFit {
     /// whole model, whose own residuals say whether it is one circle (a shiny or side-lit
     /// sphere's edge points agree less, because one level does not suit its whole rim).
     pub grey_levels: bool,
-    /// The edge's width s in the grey-level model's logistic step, px (the blur of a defocused
-    /// lens or of motion); 0 where the fit was on edge points alone.
-    pub edge_width_px: f64,
 }
 
 /// Refines a rough centre to a sub-pixel circle fit: edge points first (`fit_edges`), then the

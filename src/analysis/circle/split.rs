@@ -61,7 +61,6 @@ fn fit_pair_shared_radius(
         points_total: total,
         arc_sectors: sectors_covered(pts, [p[2 * k], p[2 * k + 1]]),
         grey_levels: false,
-        edge_width_px: 0.0,
     };
     Some([
         circle(0, a, start[0].points_total),
