@@ -202,7 +202,10 @@ mod tests {
         let r = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.2f64.to_radians());
         let (want, got) = (views[0].project(&(r * p)), turned[0].project(&p));
         assert!((want[0] - got[0]).abs() < 1e-9 && (want[1] - got[1]).abs() < 1e-9);
-        assert!((want[0] - views[0].project(&p)[0]).abs() > 1e-3, "the step moves it");
+        assert!(
+            (want[0] - views[0].project(&p)[0]).abs() > 1e-3,
+            "the step moves it"
+        );
         let (m0, m1) = (views[1].project(&p), turned[1].project(&p));
         assert!((m0[0] - m1[0]).abs() < 1e-9 && (m0[1] - m1[1]).abs() < 1e-9);
         // The scale's step.
