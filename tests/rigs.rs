@@ -16,6 +16,22 @@ fn run(dir: &Path, config: &str) -> (Value, Value) {
     (report, truth)
 }
 
+/// `impactcam analyze SESSION --config CONFIG --json --out OUT` in `dir`: the report.
+fn analyze_with(dir: &Path, session: &Path, config: &str, out: &str) -> Value {
+    common::run_json(
+        dir,
+        &[
+            "analyze",
+            session.to_str().unwrap(),
+            "--config",
+            config,
+            "--json",
+            "--out",
+            out,
+        ],
+    )
+}
+
 fn warnings(report: &Value) -> Vec<String> {
     report["quality"]["warnings"]
         .as_array()
@@ -210,18 +226,7 @@ fn the_shorthand_on_a_turned_rig_warns_and_calibrate_finds_its_maps() {
     assert!(out.status.success(), "{}", common::stderr(&out));
     let png = std::fs::read(t.path().join("cal.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG", "the figure is a PNG");
-    let calibrated = common::run_json(
-        t.path(),
-        &[
-            "analyze",
-            session.to_str().unwrap(),
-            "--config",
-            "cal.toml",
-            "--json",
-            "--out",
-            "again",
-        ],
-    );
+    let calibrated = analyze_with(t.path(), &session, "cal.toml", "again");
     // calibrate says how well it knows each map, and the analysis carries that into every σ:
     // σ(e)² is the σ(e)² of the same maps taken as exact plus each parameter's change of e.
     let cal = std::fs::read_to_string(t.path().join("cal.toml")).unwrap();
@@ -241,18 +246,7 @@ fn the_shorthand_on_a_turned_rig_warns_and_calibrate_finds_its_maps() {
         .map(|l| format!("{l}\n"))
         .collect();
     std::fs::write(t.path().join("cal_exact.toml"), exact).unwrap();
-    let as_exact = common::run_json(
-        t.path(),
-        &[
-            "analyze",
-            session.to_str().unwrap(),
-            "--config",
-            "cal_exact.toml",
-            "--json",
-            "--out",
-            "exact",
-        ],
-    );
+    let as_exact = analyze_with(t.path(), &session, "cal_exact.toml", "exact");
     assert!(as_exact["quality"]["calibration"]["geometry_uncertainty"]
         .as_array()
         .is_none_or(|a| a.is_empty()));

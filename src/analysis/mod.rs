@@ -199,6 +199,10 @@ pub fn analyze_observations(
     views: Vec<View>,
     cfg: &Config,
 ) -> Result<(Report, Details), AnalysisError> {
+    // A config that says nothing of its maps' uncertainty needs no copies for the re-runs.
+    if geometry_sigma::terms(&cfg.geometry).is_empty() {
+        return observations_once(input, obs, unmeasured, views, cfg);
+    }
     let (mut report, details) =
         observations_once(input.clone(), obs.clone(), unmeasured, views.clone(), cfg)?;
     add_geometry_uncertainty(&mut report, &input, &obs, &views, cfg);
