@@ -21,10 +21,17 @@ pub struct SideFit {
 }
 
 impl SideFit {
-    pub fn fit(series: &[Series; 3], t_ref: f64, gravity_mm_s2: f64) -> SideFit {
+    /// `floor_mm`: per axis, the scatter the centres' own σ says the positions have at least
+    /// (`fit_line`; 0 for none).
+    pub fn fit(
+        series: &[Series; 3],
+        t_ref: f64,
+        gravity_mm_s2: f64,
+        floor_mm: [f64; 3],
+    ) -> SideFit {
         let g = [0.0, -gravity_mm_s2, 0.0];
         SideFit {
-            axes: [0, 1, 2].map(|i| fit_line(&series[i], t_ref, g[i])),
+            axes: [0, 1, 2].map(|i| fit_line(&series[i], t_ref, g[i], floor_mm[i])),
         }
     }
 }
@@ -432,10 +439,30 @@ mod tests {
         let va2 = V3::new(-500.0 * e, -300.0, 0.0);
         let vb2 = V3::new(500.0 * e, -300.0, 0.0);
         let fits = [
-            SideFit::fit(&series(V3::new(-3.0, 0.0, 0.0), va, g, &pre), 0.0, g),
-            SideFit::fit(&series(V3::new(3.0, 0.0, 0.0), vb, g, &pre), 0.0, g),
-            SideFit::fit(&series(V3::new(-3.0, 0.0, 0.0), va2, g, &post), 0.0, g),
-            SideFit::fit(&series(V3::new(3.0, 0.0, 0.0), vb2, g, &post), 0.0, g),
+            SideFit::fit(
+                &series(V3::new(-3.0, 0.0, 0.0), va, g, &pre),
+                0.0,
+                g,
+                [0.0; 3],
+            ),
+            SideFit::fit(
+                &series(V3::new(3.0, 0.0, 0.0), vb, g, &pre),
+                0.0,
+                g,
+                [0.0; 3],
+            ),
+            SideFit::fit(
+                &series(V3::new(-3.0, 0.0, 0.0), va2, g, &post),
+                0.0,
+                g,
+                [0.0; 3],
+            ),
+            SideFit::fit(
+                &series(V3::new(3.0, 0.0, 0.0), vb2, g, &post),
+                0.0,
+                g,
+                [0.0; 3],
+            ),
         ];
         let dd = derive(&fits, None, [3.0, 3.0], d, g).unwrap();
         assert!(dd.tau_c.abs() < 1e-9, "{}", dd.tau_c);
@@ -462,10 +489,10 @@ mod tests {
         let pre: Vec<f64> = (1..15).map(|k| -(k as f64) * 1e-3).collect();
         let post: Vec<f64> = (1..15).map(|k| k as f64 * 1e-3).collect();
         let fits = [
-            SideFit::fit(&series(V3::zeros(), va, g, &pre), 0.0, g),
-            SideFit::fit(&series(r_c, vb, g, &pre), 0.0, g),
-            SideFit::fit(&series(V3::zeros(), va2, g, &post), 0.0, g),
-            SideFit::fit(&series(r_c, vb2, g, &post), 0.0, g),
+            SideFit::fit(&series(V3::zeros(), va, g, &pre), 0.0, g, [0.0; 3]),
+            SideFit::fit(&series(r_c, vb, g, &pre), 0.0, g, [0.0; 3]),
+            SideFit::fit(&series(V3::zeros(), va2, g, &post), 0.0, g, [0.0; 3]),
+            SideFit::fit(&series(r_c, vb2, g, &post), 0.0, g, [0.0; 3]),
         ];
         let exact = derive(&fits, None, [d / 2.0; 2], d, g).unwrap();
         assert!((exact.normal - n).norm() < 1e-6, "{:?}", exact.normal);
@@ -491,21 +518,25 @@ mod tests {
                 &series(V3::new(-3.0, 10.0, 0.0), V3::new(500.0, 0.0, 0.0), g, &pre),
                 0.0,
                 g,
+                [0.0; 3],
             ),
             SideFit::fit(
                 &series(V3::new(3.0, 0.0, 0.0), V3::new(-500.0, 0.0, 0.0), g, &pre),
                 0.0,
                 g,
+                [0.0; 3],
             ),
             SideFit::fit(
                 &series(V3::new(-3.0, 10.0, 0.0), V3::new(500.0, 0.0, 0.0), g, &pre),
                 0.0,
                 g,
+                [0.0; 3],
             ),
             SideFit::fit(
                 &series(V3::new(3.0, 0.0, 0.0), V3::new(-500.0, 0.0, 0.0), g, &pre),
                 0.0,
                 g,
+                [0.0; 3],
             ),
         ];
         assert!(matches!(

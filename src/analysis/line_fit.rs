@@ -17,8 +17,10 @@ pub struct LineFit {
 }
 
 /// Least-squares (p0, v) with robust rejection of frames further than max(4σ, 0.02 mm) from the
-/// trajectory (a mis-fitted circle must not tilt a velocity).
-pub fn fit_line(obs: &[(f64, f64)], t_ref: f64, g: f64) -> Option<LineFit> {
+/// trajectory (a mis-fitted circle must not tilt a velocity). `floor_mm`: the scatter the
+/// centres' own measurement σ says the positions have at least; the σ from the residuals is
+/// never taken below it (0: no floor).
+pub fn fit_line(obs: &[(f64, f64)], t_ref: f64, g: f64, floor_mm: f64) -> Option<LineFit> {
     let mut keep: Vec<(f64, f64)> = obs
         .iter()
         .map(|&(t, x)| (t - t_ref, x - 0.5 * g * (t - t_ref).powi(2)))
@@ -44,11 +46,15 @@ pub fn fit_line(obs: &[(f64, f64)], t_ref: f64, g: f64) -> Option<LineFit> {
         let ss: f64 = res.iter().map(|r| r * r).sum();
         // Centre errors drift slowly (a marker crossing the limb biases several frames alike);
         // with lag-one autocorrelation ρ the fit has only n(1−ρ)/(1+ρ) independent frames.
+        // Floored at the centres' own σ²: residuals of a few frames can be small by chance
+        // (their scatter has n − 2 degrees of freedom), and a σ from them alone once put a
+        // velocity 427σ from the truth.
         let s2 = if n > 2 {
             ss / (n - 2) as f64 * autocorrelation_factor(&keep, &res)
         } else {
             0.0
-        };
+        }
+        .max(floor_mm * floor_mm);
         let inv = Matrix2::new(stt, -st, -st, nf) / det;
         let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
         abs.sort_by(f64::total_cmp);
@@ -174,7 +180,7 @@ mod tests {
         let (mut z_without, mut z_with) = (Vec::new(), Vec::new());
         for _ in 0..20 {
             let pts = phase(&mut rng, |t: f64| 0.1 * (t / 8e-3).exp());
-            let fit = fit_line(&pts, 0.0, 0.0).expect("fit");
+            let fit = fit_line(&pts, 0.0, 0.0, 0.0).expect("fit");
             let drift = drift_covariance(&pts);
             let err = fit.v - 300.0;
             z_without.push((err / (fit.cov[(1, 1)] - drift[(1, 1)]).sqrt()).abs());
@@ -199,7 +205,7 @@ mod tests {
         let (mut widened, mut ratio_sum) = (0, 0.0);
         for _ in 0..trials {
             let pts = phase(&mut rng, |_| 0.0);
-            let fit = fit_line(&pts, 0.0, 0.0).expect("fit");
+            let fit = fit_line(&pts, 0.0, 0.0, 0.0).expect("fit");
             let drift = drift_covariance(&pts)[(1, 1)];
             widened += (drift > 0.0) as usize;
             ratio_sum += (fit.cov[(1, 1)] / (fit.cov[(1, 1)] - drift)).sqrt();
@@ -207,5 +213,33 @@ mod tests {
         let mean_ratio = ratio_sum / trials as f64;
         assert!(widened * 100 <= 8 * trials, "{widened} of {trials} widened");
         assert!(mean_ratio < 1.1, "σ widened by {mean_ratio:.3} on average");
+    }
+
+    /// Four frames that happen to lie on a line (residuals zero) say nothing about how well
+    /// each centre is known: without a floor the velocity's σ is zero; with the centres' own
+    /// σ as the floor it is what four frames of that σ give.
+    #[test]
+    fn residuals_small_by_chance_do_not_make_the_sigma_small() {
+        let pts: Vec<(f64, f64)> = (0..4)
+            .map(|k| {
+                let t = k as f64 * 1e-3;
+                (t, 1.0 + 300.0 * t)
+            })
+            .collect();
+        let bare = fit_line(&pts, 0.0, 0.0, 0.0).expect("fit");
+        assert!(bare.cov[(1, 1)] < 1e-12, "{}", bare.cov[(1, 1)]);
+        let floor_mm = 0.01;
+        let fit = fit_line(&pts, 0.0, 0.0, floor_mm).expect("fit");
+        // σ(v)² = σ²·n / (n·Σt² − (Σt)²) for a straight-line fit.
+        let (n, st, stt) = pts.iter().fold((0.0, 0.0, 0.0), |a, p| {
+            (a.0 + 1.0, a.1 + p.0, a.2 + p.0 * p.0)
+        });
+        let expected = floor_mm * floor_mm * n / (n * stt - st * st);
+        assert!(
+            (fit.cov[(1, 1)] / expected - 1.0).abs() < 1e-9,
+            "σ(v)² {} against {expected}",
+            fit.cov[(1, 1)]
+        );
+        assert!((fit.v - 300.0).abs() < 1e-9);
     }
 }

@@ -11,7 +11,19 @@ use super::tracking::FrameObs;
 /// views: y from the direct view, z from the mirror, x from the direct view where it measured
 /// the sphere (the mirror's x is then the calibration check), else from the mirror.
 pub(super) fn series(obs: &[FrameObs], views: &[View], s: usize, frames: &[usize]) -> [Series; 3] {
+    series_and_sigma(obs, views, s, frames).0
+}
+
+/// `series`, and per axis the median of the centres' own σ, mm (each centre's σ in px over its
+/// view's scale; 0 where there is none): the scatter the positions have at least.
+fn series_and_sigma(
+    obs: &[FrameObs],
+    views: &[View],
+    s: usize,
+    frames: &[usize],
+) -> ([Series; 3], [f64; 3]) {
     let mut out: [Series; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    let mut sigmas: [Vec<f64>; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let has_direct = views.iter().any(|v| v.kind == ViewKind::Direct);
     for f in frames.iter().map(|&k| &obs[k]) {
         for (vi, view) in views.iter().enumerate() {
@@ -27,10 +39,19 @@ pub(super) fn series(obs: &[FrameObs], views: &[View], s: usize, frames: &[usize
                     continue;
                 }
                 out[axis].push((f.time_s, val));
+                let sigma_mm = m.sigma_px[0].hypot(m.sigma_px[1]) / 2f64.sqrt() / view.px_per_mm;
+                if sigma_mm.is_finite() {
+                    sigmas[axis].push(sigma_mm);
+                }
             }
         }
     }
-    out
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    let floor = [0, 1, 2].map(|i| median(&mut sigmas[i]));
+    (out, floor)
 }
 
 /// Fewer frames than this of a phase in the primary view, and the phase is the span any view
@@ -193,7 +214,7 @@ pub(super) fn free_flight(
     let t_ref = obs[order[0]].time_s;
     let gravity = [0.0, -g, 0.0];
     let mut kept: Vec<usize> = order[..SEED].to_vec();
-    let mut fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g);
+    let mut fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g, [0.0; 3]);
     let mut misses = 0;
     for &k in &order[SEED..] {
         let one = series(obs, views, s, &[k]);
@@ -213,7 +234,7 @@ pub(super) fn free_flight(
         if on_track {
             kept.push(k);
             misses = 0;
-            fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g);
+            fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g, [0.0; 3]);
         } else {
             misses += 1;
             if misses >= 3 {
@@ -235,7 +256,12 @@ pub(super) fn fit_all(
     g: f64,
 ) -> Fits {
     let ph = flight_phases(obs, views, split, guard, g);
-    let mut fits = [0, 1, 2, 3].map(|k| SideFit::fit(&series(obs, views, k % 2, &ph[k]), t_ref, g));
+    // The final fits' σ floored at the centres' own (`fit_line`); while a phase grows (above)
+    // it is not, so which frames a phase holds does not change.
+    let mut fits = [0, 1, 2, 3].map(|k| {
+        let (series, floor) = series_and_sigma(obs, views, k % 2, &ph[k]);
+        SideFit::fit(&series, t_ref, g, floor)
+    });
     keep_common_axes(&mut fits);
     fits
 }
