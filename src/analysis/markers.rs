@@ -142,9 +142,9 @@ pub fn find(
         // fixed fraction of the light that falls on it, so a dot's darkening is its coverage
         // times that constant whatever the shading, and the constant drops out of the centroid.
         // Dividing by (shading − one paint grey) instead, as before, weighted a dot's dimmer
-        // (limb-ward) side more wherever the paint is not one grey: markers came out
-        // 0.10–0.17 px outwards under defocus, and 33 recorded varied-look sessions had 12
-        // estimates beyond 5σ against 7 now. Paint of one fixed grey (hw-sim's default look)
+        // (limb-ward) side more wherever the paint is not one grey: under defocus, dots between
+        // a third and two thirds of the radius came out 0.17 px outwards (0.05 now), and 33
+        // recorded varied-look sessions had 12 estimates beyond 5σ against 7 now. Paint of one fixed grey (hw-sim's default look)
         // is weighted by 1 − grey/shading, a slow change across a dot. Weights are signed, so
         // noise averages out instead of being clipped to one side.
         let window = marker_radius_px + 1.0;
