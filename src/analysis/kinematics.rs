@@ -21,9 +21,13 @@ pub struct SideFit {
 }
 
 impl SideFit {
-    /// `floor_mm`: per axis, the scatter the centres' own σ says the positions have at least
-    /// (`fit_line`; 0 for none).
-    pub fn fit(
+    pub fn fit(series: &[Series; 3], t_ref: f64, gravity_mm_s2: f64) -> SideFit {
+        Self::fit_floored(series, t_ref, gravity_mm_s2, [0.0; 3])
+    }
+
+    /// `fit`, each axis's σ floored at `floor_mm`: the scatter the centres' own σ says the
+    /// positions have at least (`fit_line`).
+    pub fn fit_floored(
         series: &[Series; 3],
         t_ref: f64,
         gravity_mm_s2: f64,
@@ -439,30 +443,10 @@ mod tests {
         let va2 = V3::new(-500.0 * e, -300.0, 0.0);
         let vb2 = V3::new(500.0 * e, -300.0, 0.0);
         let fits = [
-            SideFit::fit(
-                &series(V3::new(-3.0, 0.0, 0.0), va, g, &pre),
-                0.0,
-                g,
-                [0.0; 3],
-            ),
-            SideFit::fit(
-                &series(V3::new(3.0, 0.0, 0.0), vb, g, &pre),
-                0.0,
-                g,
-                [0.0; 3],
-            ),
-            SideFit::fit(
-                &series(V3::new(-3.0, 0.0, 0.0), va2, g, &post),
-                0.0,
-                g,
-                [0.0; 3],
-            ),
-            SideFit::fit(
-                &series(V3::new(3.0, 0.0, 0.0), vb2, g, &post),
-                0.0,
-                g,
-                [0.0; 3],
-            ),
+            SideFit::fit(&series(V3::new(-3.0, 0.0, 0.0), va, g, &pre), 0.0, g),
+            SideFit::fit(&series(V3::new(3.0, 0.0, 0.0), vb, g, &pre), 0.0, g),
+            SideFit::fit(&series(V3::new(-3.0, 0.0, 0.0), va2, g, &post), 0.0, g),
+            SideFit::fit(&series(V3::new(3.0, 0.0, 0.0), vb2, g, &post), 0.0, g),
         ];
         let dd = derive(&fits, None, [3.0, 3.0], d, g).unwrap();
         assert!(dd.tau_c.abs() < 1e-9, "{}", dd.tau_c);
@@ -489,10 +473,10 @@ mod tests {
         let pre: Vec<f64> = (1..15).map(|k| -(k as f64) * 1e-3).collect();
         let post: Vec<f64> = (1..15).map(|k| k as f64 * 1e-3).collect();
         let fits = [
-            SideFit::fit(&series(V3::zeros(), va, g, &pre), 0.0, g, [0.0; 3]),
-            SideFit::fit(&series(r_c, vb, g, &pre), 0.0, g, [0.0; 3]),
-            SideFit::fit(&series(V3::zeros(), va2, g, &post), 0.0, g, [0.0; 3]),
-            SideFit::fit(&series(r_c, vb2, g, &post), 0.0, g, [0.0; 3]),
+            SideFit::fit(&series(V3::zeros(), va, g, &pre), 0.0, g),
+            SideFit::fit(&series(r_c, vb, g, &pre), 0.0, g),
+            SideFit::fit(&series(V3::zeros(), va2, g, &post), 0.0, g),
+            SideFit::fit(&series(r_c, vb2, g, &post), 0.0, g),
         ];
         let exact = derive(&fits, None, [d / 2.0; 2], d, g).unwrap();
         assert!((exact.normal - n).norm() < 1e-6, "{:?}", exact.normal);
@@ -518,25 +502,21 @@ mod tests {
                 &series(V3::new(-3.0, 10.0, 0.0), V3::new(500.0, 0.0, 0.0), g, &pre),
                 0.0,
                 g,
-                [0.0; 3],
             ),
             SideFit::fit(
                 &series(V3::new(3.0, 0.0, 0.0), V3::new(-500.0, 0.0, 0.0), g, &pre),
                 0.0,
                 g,
-                [0.0; 3],
             ),
             SideFit::fit(
                 &series(V3::new(-3.0, 10.0, 0.0), V3::new(500.0, 0.0, 0.0), g, &pre),
                 0.0,
                 g,
-                [0.0; 3],
             ),
             SideFit::fit(
                 &series(V3::new(3.0, 0.0, 0.0), V3::new(-500.0, 0.0, 0.0), g, &pre),
                 0.0,
                 g,
-                [0.0; 3],
             ),
         ];
         assert!(matches!(

@@ -673,10 +673,10 @@ mod tests {
         let full = [line(100.0), line(-200.0), line(5.0)];
         let no_z = [line(100.0), line(-200.0), Vec::new()];
         let mut fits: Fits = [
-            SideFit::fit(&full, 0.0, 0.0, [0.0; 3]),
-            SideFit::fit(&full, 0.0, 0.0, [0.0; 3]),
-            SideFit::fit(&no_z, 0.0, 0.0, [0.0; 3]),
-            SideFit::fit(&full, 0.0, 0.0, [0.0; 3]),
+            SideFit::fit(&full, 0.0, 0.0),
+            SideFit::fit(&full, 0.0, 0.0),
+            SideFit::fit(&no_z, 0.0, 0.0),
+            SideFit::fit(&full, 0.0, 0.0),
         ];
         assert!(fits[0].axes[2].is_some());
         assert_eq!(keep_common_axes(&mut fits), vec![2]);
@@ -784,7 +784,7 @@ mod tests {
                     .map(|&t| (t, p0[i] + v[i] * t + 0.5 * gi * t * t))
                     .collect()
             };
-            SideFit::fit(&[line(0), line(1), line(2)], 0.0, g, [0.0; 3])
+            SideFit::fit(&[line(0), line(1), line(2)], 0.0, g)
         };
         let (va, vb) = (V3::new(500.0, 100.0, 0.0), V3::new(-500.0, -100.0, 0.0));
         let (va2, vb2) = (V3::new(-450.0, 60.0, 0.0), V3::new(450.0, -60.0, 0.0));

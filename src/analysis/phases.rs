@@ -11,7 +11,7 @@ use super::tracking::FrameObs;
 /// views: y from the direct view, z from the mirror, x from the direct view where it measured
 /// the sphere (the mirror's x is then the calibration check), else from the mirror.
 pub(super) fn series(obs: &[FrameObs], views: &[View], s: usize, frames: &[usize]) -> [Series; 3] {
-    series_and_sigma(obs, views, s, frames).0
+    series_with(obs, views, s, frames, None)
 }
 
 /// `series`, and per axis the median of the centres' own σ, mm (each centre's σ in px over its
@@ -22,8 +22,25 @@ fn series_and_sigma(
     s: usize,
     frames: &[usize],
 ) -> ([Series; 3], [f64; 3]) {
-    let mut out: [Series; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let mut sigmas: [Vec<f64>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    let out = series_with(obs, views, s, frames, Some(&mut sigmas));
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    (out, [0, 1, 2].map(|i| median(&mut sigmas[i])))
+}
+
+/// `series`, pushing each centre's σ in mm onto `sigmas` per axis when asked (the growing
+/// phases and the leave-one-out refits, which call `series` for every frame, do not ask).
+fn series_with(
+    obs: &[FrameObs],
+    views: &[View],
+    s: usize,
+    frames: &[usize],
+    mut sigmas: Option<&mut [Vec<f64>; 3]>,
+) -> [Series; 3] {
+    let mut out: [Series; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let has_direct = views.iter().any(|v| v.kind == ViewKind::Direct);
     for f in frames.iter().map(|&k| &obs[k]) {
         for (vi, view) in views.iter().enumerate() {
@@ -39,19 +56,17 @@ fn series_and_sigma(
                     continue;
                 }
                 out[axis].push((f.time_s, val));
-                let sigma_mm = m.sigma_px[0].hypot(m.sigma_px[1]) / 2f64.sqrt() / view.px_per_mm;
-                if sigma_mm.is_finite() {
-                    sigmas[axis].push(sigma_mm);
+                if let Some(sigmas) = sigmas.as_deref_mut() {
+                    let sigma_mm =
+                        m.sigma_px[0].hypot(m.sigma_px[1]) / 2f64.sqrt() / view.px_per_mm;
+                    if sigma_mm.is_finite() {
+                        sigmas[axis].push(sigma_mm);
+                    }
                 }
             }
         }
     }
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(0.0)
-    };
-    let floor = [0, 1, 2].map(|i| median(&mut sigmas[i]));
-    (out, floor)
+    out
 }
 
 /// Fewer frames than this of a phase in the primary view, and the phase is the span any view
@@ -214,7 +229,7 @@ pub(super) fn free_flight(
     let t_ref = obs[order[0]].time_s;
     let gravity = [0.0, -g, 0.0];
     let mut kept: Vec<usize> = order[..SEED].to_vec();
-    let mut fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g, [0.0; 3]);
+    let mut fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g);
     let mut misses = 0;
     for &k in &order[SEED..] {
         let one = series(obs, views, s, &[k]);
@@ -234,7 +249,7 @@ pub(super) fn free_flight(
         if on_track {
             kept.push(k);
             misses = 0;
-            fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g, [0.0; 3]);
+            fit = SideFit::fit(&series(obs, views, s, &kept), t_ref, g);
         } else {
             misses += 1;
             if misses >= 3 {
@@ -260,7 +275,7 @@ pub(super) fn fit_all(
     // it is not, so which frames a phase holds does not change.
     let mut fits = [0, 1, 2, 3].map(|k| {
         let (series, floor) = series_and_sigma(obs, views, k % 2, &ph[k]);
-        SideFit::fit(&series, t_ref, g, floor)
+        SideFit::fit_floored(&series, t_ref, g, floor)
     });
     keep_common_axes(&mut fits);
     fits

@@ -41,8 +41,8 @@ pub(super) fn combined_uncertainties(
     for &k in &frames {
         let without: [Vec<usize>; 4] =
             [0, 1, 2, 3].map(|j| ph[j].iter().copied().filter(|&f| f != k).collect());
-        let fk: Fits = [0, 1, 2, 3]
-            .map(|j| SideFit::fit(&series(obs, views, j % 2, &without[j]), split, g, [0.0; 3]));
+        let fk: Fits =
+            [0, 1, 2, 3].map(|j| SideFit::fit(&series(obs, views, j % 2, &without[j]), split, g));
         let mut fk = fk;
         keep_common_axes(&mut fk);
         if let Ok(d) = derive(&fk, omega, radii, contact_mm, g) {
