@@ -375,13 +375,12 @@ where
         Layering::InFront(f) if N == 2 => Some(1 - f),
         _ => None,
     };
-    // `with_j`: the derivatives too (the LM's cost evaluations need the model only).
     // `hidden`: the backdrop a disc hides at this pixel (`RingPixel::hidden`). A disc replaces
     // what is behind it, and the normalisation subtracted that from every pixel, so a disc's
     // term is its step times its shading less what it hides: over a flat ground the same, over
     // a tube end or a ruler the occlusion a sum of terms would miss (spheres crossing a ruler
     // came out up to 1.2 px off, and the tube ends' edges pulled centres 0.1–0.5 px).
-    let at_point = |p: &Vp<P>, u: f64, v: f64, h: f64, hidden: f64, with_j: bool| -> (f64, Vp<P>) {
+    let at_point = |p: &Vp<P>, u: f64, v: f64, h: f64, hidden: f64| -> (f64, Vp<P>) {
         // Per disc: its term l·inner, the term's derivatives, and l's own (for hiding).
         let mut term = [0.0; N];
         let mut d_term = [Vp::<P>::zeros(); N];
@@ -434,42 +433,39 @@ where
             let b = p[o + 5];
             let inner = p[o + 4] + b * lit.mean + p[o + 8] * cs + p[o + 9] * sn;
             let shown = inner - hidden;
-            if with_j {
-                // Through ρᵢ = (R − sp(R − d ± h/2, s))/R: ∂ρᵢ/∂d = lᵢ/R, ∂ρᵢ/∂R =
-                // ((1 − lᵢ) − ρᵢ)/R, ∂ρᵢ/∂s = −(∂sp/∂s)ᵢ/R.
-                let dg_dd = (lit.d_rho0 * l0 + lit.d_rho1 * l1) / r;
-                let dg_dr =
-                    (lit.d_rho0 * ((1.0 - l0) - rho0) + lit.d_rho1 * ((1.0 - l1) - rho1)) / r;
-                let dg_ds = -(lit.d_rho0 * ds0 + lit.d_rho1 * ds1) / r;
-                // dd/dcx = −cos θ, dd/dcy = −sin θ; d(cos θ)/dcx = −sin²θ/d, d(sin θ)/dcx =
-                // cos θ sin θ/d, and for cy the same turned by 90°.
-                let dlamp_dcx = (-c1 * sn * sn + c2 * cs * sn) / d;
-                let dlamp_dcy = (c1 * cs * sn - c2 * cs * cs) / d;
-                let di_dcx = b * (-dg_dd * cs + lit.d_lamp * dlamp_dcx)
-                    + (-p[o + 8] * sn * sn + p[o + 9] * cs * sn) / d;
-                let di_dcy = b * (-dg_dd * sn + lit.d_lamp * dlamp_dcy)
-                    + (p[o + 8] * cs * sn - p[o + 9] * cs * cs) / d;
-                let di_dr = b * dg_dr;
-                let j = &mut d_term[k];
-                j[o] = dl_dx * cs * shown + l * di_dcx;
-                j[o + 1] = dl_dx * sn * shown + l * di_dcy;
-                j[o + 2] = dl_dx * shown + l * di_dr;
-                j[o + 3] = dl_ds * shown + l * b * dg_ds;
-                j[o + 4] = l;
-                j[o + 5] = l * lit.mean;
-                if symmetric_disc != Some(k) {
-                    j[o + 6] = l * b * lit.d_lamp * cs;
-                    j[o + 7] = l * b * lit.d_lamp * sn;
-                    j[o + 8] = l * cs;
-                    j[o + 9] = l * sn;
-                }
-                if hiding {
-                    let js = &mut d_step[k];
-                    js[o] = dl_dx * cs;
-                    js[o + 1] = dl_dx * sn;
-                    js[o + 2] = dl_dx;
-                    js[o + 3] = dl_ds;
-                }
+            // Through ρᵢ = (R − sp(R − d ± h/2, s))/R: ∂ρᵢ/∂d = lᵢ/R, ∂ρᵢ/∂R =
+            // ((1 − lᵢ) − ρᵢ)/R, ∂ρᵢ/∂s = −(∂sp/∂s)ᵢ/R.
+            let dg_dd = (lit.d_rho0 * l0 + lit.d_rho1 * l1) / r;
+            let dg_dr = (lit.d_rho0 * ((1.0 - l0) - rho0) + lit.d_rho1 * ((1.0 - l1) - rho1)) / r;
+            let dg_ds = -(lit.d_rho0 * ds0 + lit.d_rho1 * ds1) / r;
+            // dd/dcx = −cos θ, dd/dcy = −sin θ; d(cos θ)/dcx = −sin²θ/d, d(sin θ)/dcx =
+            // cos θ sin θ/d, and for cy the same turned by 90°.
+            let dlamp_dcx = (-c1 * sn * sn + c2 * cs * sn) / d;
+            let dlamp_dcy = (c1 * cs * sn - c2 * cs * cs) / d;
+            let di_dcx = b * (-dg_dd * cs + lit.d_lamp * dlamp_dcx)
+                + (-p[o + 8] * sn * sn + p[o + 9] * cs * sn) / d;
+            let di_dcy = b * (-dg_dd * sn + lit.d_lamp * dlamp_dcy)
+                + (p[o + 8] * cs * sn - p[o + 9] * cs * cs) / d;
+            let di_dr = b * dg_dr;
+            let j = &mut d_term[k];
+            j[o] = dl_dx * cs * shown + l * di_dcx;
+            j[o + 1] = dl_dx * sn * shown + l * di_dcy;
+            j[o + 2] = dl_dx * shown + l * di_dr;
+            j[o + 3] = dl_ds * shown + l * b * dg_ds;
+            j[o + 4] = l;
+            j[o + 5] = l * lit.mean;
+            if symmetric_disc != Some(k) {
+                j[o + 6] = l * b * lit.d_lamp * cs;
+                j[o + 7] = l * b * lit.d_lamp * sn;
+                j[o + 8] = l * cs;
+                j[o + 9] = l * sn;
+            }
+            if hiding {
+                let js = &mut d_step[k];
+                js[o] = dl_dx * cs;
+                js[o + 1] = dl_dx * sn;
+                js[o + 2] = dl_dx;
+                js[o + 3] = dl_ds;
             }
             term[k] = l * shown;
             step[k] = l;
@@ -480,16 +476,12 @@ where
             Layering::InFront(f) if N == 2 => {
                 let b = 1 - f;
                 model += term[f] + (1.0 - step[f]) * term[b];
-                if with_j {
-                    j += d_term[f] - d_step[f] * term[b] + d_term[b] * (1.0 - step[f]);
-                }
+                j += d_term[f] - d_step[f] * term[b] + d_term[b] * (1.0 - step[f]);
             }
             _ => {
                 for k in 0..N {
                     model += term[k];
-                    if with_j {
-                        j += d_term[k];
-                    }
+                    j += d_term[k];
                 }
             }
         }
@@ -503,28 +495,24 @@ where
     // out, and moved the centre 0.005 px (noise-free renders). So in the final round a pixel
     // the edge crosses is averaged in 3 × 3 parts; elsewhere, and in the rounds that find the
     // dots, the pixel is one box.
-    let eval_with = |p: &Vp<P>, px: &RingPixel, area: bool, with_j: bool| -> (f64, Vp<P>) {
+    let eval = |p: &Vp<P>, px: &RingPixel, area: bool| -> (f64, Vp<P>) {
         let offsets: &[f64] = match (area, px.area) {
             (true, Area::Fine) => &SUBPIXEL_OFFSETS,
-            _ => return at_point(p, px.u, px.v, 1.0, px.hidden, with_j),
+            _ => return at_point(p, px.u, px.v, 1.0, px.hidden),
         };
         let h = 1.0 / offsets.len() as f64;
         let mut model = 0.0;
         let mut j = Vp::<P>::zeros();
         for a in offsets {
             for b in offsets {
-                let (m, jj) = at_point(p, px.u + a, px.v + b, h, px.hidden, with_j);
+                let (m, jj) = at_point(p, px.u + a, px.v + b, h, px.hidden);
                 model += m;
-                if with_j {
-                    j += jj;
-                }
+                j += jj;
             }
         }
         let w = 1.0 / (offsets.len() * offsets.len()) as f64;
         (model * w, j * w)
     };
-    let eval = |p: &Vp<P>, px: &RingPixel, area: bool| eval_with(p, px, area, true);
-    let value = |p: &Vp<P>, px: &RingPixel, area: bool| eval_with(p, px, area, false).0;
     let mut p = Vp::<P>::zeros();
     p[0] = background;
     for (k, st) in starts.iter().enumerate() {
@@ -613,12 +601,6 @@ where
         }
         a
     });
-    let cost = |p: &Vp<P>, px: &[RingPixel], area: bool| -> f64 {
-        px.iter()
-            .map(|q| (q.grey - value(p, q, area)).powi(2))
-            .sum::<f64>()
-            + TIE_WEIGHT * tie_residual(p).powi(2)
-    };
     // Edge widths stay plausible, and a lamp gives light (b ≥ 0): with b < 0 the model has
     // other, unphysical ways to fit a band only 2.5 px deep. The bounds are kept by holding a
     // parameter that sits on one and is pushed beyond it, and by clipping the step to them
@@ -643,13 +625,19 @@ where
     // Jᵀr. A trial step is evaluated with its Jacobian, so that once accepted the next
     // iteration need not pass over the pixels again (the same numbers, in the same order, as a
     // separate cost pass and Jacobian pass).
-    let normal = |p: &Vp<P>, keep: &[RingPixel], area: bool| -> (f64, Mp<P>, Vp<P>) {
+    let normal = |p: &Vp<P>,
+                  keep: &[RingPixel],
+                  area: bool,
+                  residuals: &mut Vec<f64>|
+     -> (f64, Mp<P>, Vp<P>) {
         let mut jtj = Mp::<P>::zeros();
         let mut jtr = Vp::<P>::zeros();
         let mut sum_sq = 0.0;
+        residuals.clear();
         for q in keep {
             let (m, j) = eval(p, q, area);
             let r = q.grey - m;
+            residuals.push(r);
             sum_sq += r * r;
             // JᵀJ is symmetric: its upper triangle only, mirrored below.
             for c in 0..P {
@@ -668,11 +656,21 @@ where
         (sum_sq, jtj, jtr)
     };
     // Levenberg–Marquardt from p on the pixels kept, until a step would move no centre or
-    // radius by more than `settled_px`; returns the last JᵀJ.
-    let descend = |p: &mut Vp<P>, keep: &[RingPixel], area: bool, settled_px: f64| -> Mp<P> {
+    // radius by more than `settled_px`. Returns the cost at the final p (with the tie), the
+    // JᵀJ the last iteration started from (with the tie's row) and each pixel's residual at p in
+    // `keep`'s order, all from the passes the descent made: neither the dots' rejection nor σ²
+    // needs a pass over the pixels of its own.
+    let descend = |p: &mut Vp<P>,
+                   keep: &[RingPixel],
+                   area: bool,
+                   settled_px: f64|
+     -> (f64, Mp<P>, Vec<f64>) {
         let mut lambda = 1e-3;
-        let (sum_sq, mut jtj_at_p, mut jtr_at_p) = normal(p, keep, area);
+        let mut res_at_p = Vec::with_capacity(keep.len());
+        let mut res_trial = Vec::with_capacity(keep.len());
+        let (sum_sq, mut jtj_at_p, mut jtr_at_p) = normal(p, keep, area, &mut res_at_p);
         let mut c_now = sum_sq + TIE_WEIGHT * tie_residual(p).powi(2);
+        // JᵀJ with the tie's row, as the last iteration began (what the covariance uses).
         let mut jtj = Mp::<P>::zeros();
         for _ in 0..30 {
             jtj = jtj_at_p;
@@ -720,7 +718,7 @@ where
                 }
                 let mut trial = *p + step;
                 project(&mut trial);
-                let (sum_sq, jtj_t, jtr_t) = normal(&trial, keep, area);
+                let (sum_sq, jtj_t, jtr_t) = normal(&trial, keep, area, &mut res_trial);
                 let c_new = sum_sq + TIE_WEIGHT * tie_residual(&trial).powi(2);
                 // After a step is taken the damping falls by up to 3× if the cost fell as the
                 // quadratic model predicted (gain ρ = actual / predicted decrease near 1), and
@@ -737,6 +735,7 @@ where
                     *p = trial;
                     c_now = c_new;
                     (jtj_at_p, jtr_at_p) = (jtj_t, jtr_t);
+                    std::mem::swap(&mut res_at_p, &mut res_trial);
                     lambda =
                         (lambda * (1.0f64 / 3.0).max(1.0 - (2.0 * gain - 1.0).powi(3))).max(1e-9);
                     accepted = true;
@@ -748,7 +747,7 @@ where
                 break;
             }
         }
-        jtj
+        (c_now, jtj, res_at_p)
     };
     // Each pixel as one box first, rejecting dots; then pixels the edge crosses in 3 × 3 parts
     // from there, which moves the centres by thousandths of a pixel.
@@ -758,16 +757,13 @@ where
         // round's model is smooth, so it converges to its own minimum from here. (With point
         // samples of a near step and of √ at the limb, that round zig-zagged and where it
         // started showed in its result: this had to settle to 1e-7 px.)
-        descend(&mut p, &keep, false, 1e-3);
+        let (_, _, mut res) = descend(&mut p, &keep, false, 1e-3);
         if round == 2 {
             break;
         }
         // Dots on the rim are far darker than any model pixel; a pixel next to one may be
         // partly dot and only a little darker, so the neighbours of a rejected pixel go too.
-        let res: Vec<f64> = keep
-            .iter()
-            .map(|q| (q.grey - value(&p, q, false)).abs())
-            .collect();
+        res.iter_mut().for_each(|r| *r = r.abs());
         let mut sorted = res.clone();
         sorted.sort_by(f64::total_cmp);
         // A floor of 3 % of the edge's contrast: in a noise-free image the residuals are the
@@ -792,12 +788,12 @@ where
             return None;
         }
     }
-    let jtj = descend(&mut p, &keep, true, 1e-4);
+    let (cost, jtj, _) = descend(&mut p, &keep, true, 1e-4);
     if !p.iter().all(|x| x.is_finite()) {
         return None;
     }
     let n = keep.len() as f64;
-    let s2 = cost(&p, &keep, true) / (n - P as f64).max(1.0);
+    let s2 = cost / (n - P as f64).max(1.0);
     let mut ridged = jtj;
     let floor = 1e-9 * (0..P).map(|i| jtj[(i, i)]).fold(0.0, f64::max);
     for i in 0..P {
