@@ -35,6 +35,7 @@ pub type StageTimes = [[f64; STAGES]; 2];
 
 thread_local! {
     static PASS: Cell<usize> = const { Cell::new(0) };
+    static MODEL_SAMPLES: Cell<u64> = const { Cell::new(0) };
     static TIMES: Cell<[[Duration; STAGES]; 2]> = const { Cell::new([[Duration::ZERO; STAGES]; 2]) };
 }
 
@@ -50,6 +51,19 @@ pub fn timed<T>(stage: Stage, f: impl FnOnce() -> T) -> T {
         t.set(all);
     });
     out
+}
+
+/// Adds `n` evaluations of the grey-level circle model (`circle::profile`: one per pixel, nine
+/// per pixel the edge crosses in the last round) to this thread's count. A count, not a time:
+/// the work the fits did, the same on any machine and under any load, so that a change to the
+/// fits can be compared where the clock scatters by ±15 %.
+pub(crate) fn count_model_samples(n: usize) {
+    MODEL_SAMPLES.with(|c| c.set(c.get() + n as u64));
+}
+
+/// The grey-level model evaluations counted on this thread since the last call; resets them.
+pub fn take_model_samples() -> u64 {
+    MODEL_SAMPLES.with(|c| c.replace(0))
 }
 
 /// Which pass the following stages belong to (0 or 1).

@@ -40,6 +40,8 @@ struct Timing {
     centroid_s: f64,
     analysis_s: f64,
     stages: StageTimes,
+    /// Grey-level model evaluations of the circle fits (`stages::count_model_samples`).
+    model_samples: u64,
     /// OpenCV's HoughCircles on the same frames, s (with `--opencv`).
     opencv_s: Option<f64>,
 }
@@ -194,10 +196,12 @@ fn time_input(path: &Path, cfg: &Config, opencv: Option<(&Path, &Path)>) -> Resu
     drop(frames);
     let mut src = open()?;
     stages::take();
+    stages::take_model_samples();
     let t0 = thread_cpu_s();
     let result = crate::analysis::analyze(src.as_mut(), cfg, &mut |_, _| {});
     let analysis_s = thread_cpu_s() - t0;
     let stages = stages::take();
+    let model_samples = stages::take_model_samples();
     result.map_err(|e| format!("{}: {e}", path.display()))?;
     let opencv_s = opencv
         .map(|(python, script)| opencv_time(python, script, path, cfg))
@@ -208,6 +212,7 @@ fn time_input(path: &Path, cfg: &Config, opencv: Option<(&Path, &Path)>) -> Resu
         centroid_s,
         analysis_s,
         stages,
+        model_samples,
         opencv_s,
     })
 }
@@ -239,6 +244,7 @@ impl Group {
                 sum.decode_s += t.decode_s;
                 sum.centroid_s += t.centroid_s;
                 sum.analysis_s += t.analysis_s;
+                sum.model_samples += t.model_samples;
                 if let Some(o) = t.opencv_s {
                     *sum.opencv_s.get_or_insert(0.0) += o;
                 }
@@ -328,6 +334,11 @@ impl Group {
         row(
             "  not in a stage (setup, dot masks)",
             per(sum.analysis_s - accounted),
+        );
+        let _ = writeln!(
+            out,
+            "  grey-level model evaluations per frame (a count, the same on any machine): {:.0}",
+            sum.model_samples as f64 / sum.frames as f64
         );
         if let Some(o) = sum.opencv_s {
             let _ = writeln!(

@@ -625,6 +625,25 @@ where
     // Jᵀr. A trial step is evaluated with its Jacobian, so that once accepted the next
     // iteration need not pass over the pixels again (the same numbers, in the same order, as a
     // separate cost pass and Jacobian pass).
+    const BATCH: usize = 8;
+    // JᵀJ (its upper triangle) and Jᵀr plus one batch of rows, `rows[i][k]` the i-th
+    // derivative of the batch's k-th pixel.
+    let add_rows =
+        |jtj: &mut Mp<P>, jtr: &mut Vp<P>, rows: &[[f64; BATCH]; P], res: &[f64; BATCH]| {
+            let dot = |a: &[f64; BATCH], b: &[f64; BATCH]| {
+                let mut acc = [0.0; BATCH];
+                for k in 0..BATCH {
+                    acc[k] = a[k] * b[k];
+                }
+                acc.iter().sum::<f64>()
+            };
+            for c in 0..P {
+                for r in 0..=c {
+                    jtj[(r, c)] += dot(&rows[r], &rows[c]);
+                }
+                jtr[c] += dot(&rows[c], res);
+            }
+        };
     let normal = |p: &Vp<P>,
                   keep: &[RingPixel],
                   area: bool,
@@ -634,25 +653,45 @@ where
         let mut jtr = Vp::<P>::zeros();
         let mut sum_sq = 0.0;
         residuals.clear();
+        let mut samples = 0;
+        // The pixels' Jacobian rows in batches of `BATCH`, held by column, so that each entry of
+        // JᵀJ is a short dot product the compiler vectorises rather than one add to memory per
+        // pixel (those adds were the largest single cost of the fit).
+        let mut rows = [[0.0; BATCH]; P];
+        let mut res = [0.0; BATCH];
+        let mut filled = 0;
         for q in keep {
+            samples += if area && q.area == Area::Fine {
+                SUBPIXEL_OFFSETS.len() * SUBPIXEL_OFFSETS.len()
+            } else {
+                1
+            };
             let (m, j) = eval(p, q, area);
             let r = q.grey - m;
             residuals.push(r);
             sum_sq += r * r;
-            // JᵀJ is symmetric: its upper triangle only, mirrored below.
-            for c in 0..P {
-                let jc = j[c];
-                for r in 0..=c {
-                    jtj[(r, c)] += j[r] * jc;
-                }
+            for (i, col) in rows.iter_mut().enumerate() {
+                col[filled] = j[i];
             }
-            jtr += j * r;
+            res[filled] = r;
+            filled += 1;
+            if filled == BATCH {
+                add_rows(&mut jtj, &mut jtr, &rows, &res);
+                filled = 0;
+            }
         }
+        // The last, partial batch: the rows not refilled are zeroed.
+        for col in rows.iter_mut() {
+            col[filled..].fill(0.0);
+        }
+        res[filled..].fill(0.0);
+        add_rows(&mut jtj, &mut jtr, &rows, &res);
         for c in 0..P {
             for r in c + 1..P {
                 jtj[(r, c)] = jtj[(c, r)];
             }
         }
+        crate::analysis::stages::count_model_samples(samples);
         (sum_sq, jtj, jtr)
     };
     // Levenberg–Marquardt from p on the pixels kept, until a step would move no centre or
