@@ -56,7 +56,7 @@ fn fit_one(
     radius_px: Option<f64>,
 ) -> Option<CircleFit> {
     let near_other = |u: f64, v: f64| {
-        other.is_some_and(|(oc, or)| (u - oc[0]).hypot(v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
+        other.is_some_and(|(oc, or)| dist(u - oc[0], v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
     };
     let start = CircleFit {
         radius: radius_px.unwrap_or(start.radius),
@@ -165,6 +165,12 @@ pub fn rings_meet(a: &CircleFit, b: &CircleFit) -> bool {
     apart < a.radius + b.radius + 2.0 * PROFILE_BAND_PX + 1.0
 }
 
+/// √(dx² + dy²): at pixel scale nothing overflows, and `hypot`'s care costs several times a
+/// √ on every pixel of every ring.
+fn dist(dx: f64, dy: f64) -> f64 {
+    (dx * dx + dy * dy).sqrt()
+}
+
 /// The pixels within `PROFILE_BAND_PX` of any of the discs' edges, inside the view, off the
 /// dots and not `excluded`; None unless each disc keeps `min_sectors` of its ring's 36 sectors and at
 /// least 40 pixels.
@@ -200,7 +206,7 @@ fn ring_pixels(
     let (u_lo, u_hi) = span(lo(0), hi(0), img.width)?;
     let (v_lo, v_hi) = span(lo(1), hi(1), img.height)?;
     let on_ring = |d: &CircleFit, u: f64, v: f64| {
-        ((u - d.centre[0]).hypot(v - d.centre[1]) - d.radius).abs() <= PROFILE_BAND_PX
+        (dist(u - d.centre[0], v - d.centre[1]) - d.radius).abs() <= PROFILE_BAND_PX
     };
     let mut pixels: Vec<RingPixel> = Vec::new();
     for v in v_lo..=v_hi {
@@ -216,13 +222,13 @@ fn ring_pixels(
             }
             if dots
                 .iter()
-                .any(|d| (uf - d.centre_px[0]).hypot(vf - d.centre_px[1]) < d.radius_px)
+                .any(|d| dist(uf - d.centre_px[0], vf - d.centre_px[1]) < d.radius_px)
             {
                 continue;
             }
             let to_edge = discs
                 .iter()
-                .map(|d| ((uf - d.centre[0]).hypot(vf - d.centre[1]) - d.radius).abs())
+                .map(|d| (dist(uf - d.centre[0], vf - d.centre[1]) - d.radius).abs())
                 .fold(f64::INFINITY, f64::min);
             pixels.push(RingPixel {
                 u: uf,
@@ -335,14 +341,24 @@ fn mean_lit(rho0: f64, rho1: f64, lamp: f64) -> LitMean {
             d_lamp: 0.0,
         };
     }
-    let f = |rho: f64| 0.5 * (rho * nz(rho) + rho.asin());
-    let integral = f(top) - f(rho1) + 0.5 * lamp * (top * top - rho1 * rho1);
+    // F(top) − F(ρ₁) with each √ taken once, and the two asins' difference as one asin where
+    // both radii are ≥ 0 (always, in the band): asin a − asin b = asin(a√(1 − b²) − b√(1 − a²))
+    // for 0 ≤ b ≤ a ≤ 1, the difference then within [0, π/2]. (This function and its asins
+    // were a fifth of the fit's time.)
+    let (n_top, n1) = (nz(top), nz(rho1));
+    let arcs = if rho1 >= 0.0 {
+        (top * n1 - rho1 * n_top).clamp(-1.0, 1.0).asin()
+    } else {
+        top.asin() - rho1.asin()
+    };
+    let integral = 0.5 * (top * n_top - rho1 * n1 + arcs) + 0.5 * lamp * (top * top - rho1 * rho1);
     let mean = integral / span;
-    let g_top = if top < rho0 { 0.0 } else { g(rho0) };
+    // Where the terminator does not cut the span, top = ρ₀.
+    let g_top = if top < rho0 { 0.0 } else { lamp * rho0 + n_top };
     LitMean {
         mean,
         d_rho0: (g_top - mean) / span,
-        d_rho1: (mean - g(rho1)) / span,
+        d_rho1: (mean - (lamp * rho1 + n1)) / span,
         d_lamp: 0.5 * (top * top - rho1 * rho1) / span,
     }
 }
@@ -822,7 +838,11 @@ where
         if bad.is_empty() {
             break;
         }
-        keep.retain(|q| !bad.iter().any(|b| (q.u - b.0).hypot(q.v - b.1) <= 1.5));
+        // (Pixel centres: whole-pixel offsets, so the squares compare exactly.)
+        keep.retain(|q| {
+            !bad.iter()
+                .any(|b| (q.u - b.0).powi(2) + (q.v - b.1).powi(2) <= 1.5 * 1.5)
+        });
         if keep.len() < n_start / 2 {
             return None;
         }
