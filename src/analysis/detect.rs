@@ -36,10 +36,15 @@ pub fn levels(img: &GreyImage, view: &View) -> ViewLevels {
     let mut hist = vec![0u32; BINS];
     let [x0, y0, w, h] = view.region.map(|x| x as usize);
     let scale = BINS as f64 / 256.0;
-    for v in y0..(y0 + h).min(img.height) {
-        for u in x0..(x0 + w).min(img.width) {
-            let b = ((img.at(u, v) as f64 * scale) as usize).min(BINS - 1);
-            hist[b] += 1;
+    let (u_end, v_end) = ((x0 + w).min(img.width), (y0 + h).min(img.height));
+    if x0 < u_end {
+        // Row slices: one bounds check per row, not per pixel (every pixel of every view, in
+        // every frame of both passes).
+        for v in y0..v_end {
+            let row = &img.data[v * img.width + x0..v * img.width + u_end];
+            for &grey in row {
+                hist[((grey as f64 * scale) as usize).min(BINS - 1)] += 1;
+            }
         }
     }
     let total: u64 = hist.iter().map(|&c| c as u64).sum();

@@ -628,3 +628,32 @@ fn a_lone_sphere_lit_from_the_side_is_not_biased() {
         );
     }
 }
+
+/// `bench analysis` prints the grey-level model's evaluations per frame as the measure of the
+/// fits' work that does not scatter with the machine's load: a fit counts every pass over its
+/// ring (at least three rounds, each over at least half the ring's pixels), and the same fit
+/// again counts exactly the same.
+#[test]
+fn the_fits_work_is_counted_and_the_same_each_time() {
+    let (view, r_px, cfg) = dotless_direct_view(64, 64, [31.3, 31.6]);
+    let far = V3::new(40.0, 40.0, 0.0);
+    let (img, truth) = render_pair(&view, 64, 64, [V3::zeros(), far], &cfg, 7);
+    let t = truth[0];
+    let e = fit_edges(&img, &view, [t[0] + 0.3, t[1] - 0.2], r_px, 30.0, None)
+        .expect("edge fit")
+        .0;
+    let ring_px = (2.0 * std::f64::consts::PI * r_px * 2.0 * PROFILE_BAND_PX) as u64;
+    crate::analysis::stages::take_model_samples();
+    let counts: Vec<u64> = (0..2)
+        .map(|_| {
+            profile_fit(&img, &view, &e, 30.0, None, &[]).expect("the disc is fitted");
+            crate::analysis::stages::take_model_samples()
+        })
+        .collect();
+    assert!(
+        counts[0] >= 3 * ring_px / 2,
+        "{} evaluations for a ring of about {ring_px} pixels",
+        counts[0]
+    );
+    assert_eq!(counts[0], counts[1], "the same fit counted differently");
+}
