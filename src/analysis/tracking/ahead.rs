@@ -76,13 +76,39 @@ impl Ahead {
     }
 }
 
-/// Fits made without dot masks, by frame and arguments: the first pass's, for the second.
+/// Fits made without dot masks, by frame and arguments: the first pass's, for the second. And
+/// each frame's detection by view, which the second pass would otherwise repeat on the same
+/// frames (a few hundred bytes per frame and view).
 #[derive(Default)]
 pub struct FitMemo {
     fits: Mutex<HashMap<(usize, FitKey), BlobFit>>,
+    detected: Mutex<HashMap<(usize, usize), (ViewLevels, Vec<Blob>)>>,
 }
 
 impl FitMemo {
+    /// Frame `i`'s view `vi`: its levels and blobs, from the memo where detected before, else
+    /// from `detect` (and kept). Detection is a pure function of the frame and the view.
+    pub(super) fn detection(
+        &self,
+        i: usize,
+        vi: usize,
+        detect: impl FnOnce() -> (ViewLevels, Vec<Blob>),
+    ) -> (ViewLevels, Vec<Blob>) {
+        if let Some(d) = self
+            .detected
+            .lock()
+            .ok()
+            .and_then(|m| m.get(&(i, vi)).cloned())
+        {
+            return d;
+        }
+        let d = detect();
+        if let Ok(mut m) = self.detected.lock() {
+            m.insert((i, vi), d.clone());
+        }
+        d
+    }
+
     /// Frame `i`'s fit with `key`'s arguments and no dot masked, if made before.
     pub(super) fn get(&self, i: usize, key: FitKey) -> Option<BlobFit> {
         self.fits.lock().ok()?.get(&(i, key)).copied()
@@ -135,8 +161,11 @@ fn frame_ahead(
     for (vi, view) in views.iter().enumerate() {
         let radius = [0, 1].map(|s| cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
         let r_mean = 0.5 * (radius[0] + radius[1]);
-        let lv = levels(img, view);
-        let blobs = find_blobs(img, view, &lv, r_mean, cfg.analysis.threshold_fraction);
+        let (lv, blobs) = memo.detection(i, vi, || {
+            let lv = levels(img, view);
+            let blobs = find_blobs(img, view, &lv, r_mean, cfg.analysis.threshold_fraction);
+            (lv, blobs)
+        });
         if radius[0] == radius[1] && blobs.len() <= 2 {
             let view_dots: &[DotMask] = dots.get(&(i, vi)).map(Vec::as_slice).unwrap_or(&[]);
             for (j, b) in blobs.iter().enumerate().filter(|(_, b)| !b.merged) {

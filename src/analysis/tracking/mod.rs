@@ -221,15 +221,17 @@ impl Tracker {
         let (lv, blobs) = match cx.ahead.detected(vi) {
             Some(d) => d.clone(),
             None => stages::timed(Stage::Detect, || {
-                let lv = levels(cx.img, view);
-                let blobs = find_blobs(
-                    cx.img,
-                    view,
-                    &lv,
-                    r_mean,
-                    cx.cfg.analysis.threshold_fraction,
-                );
-                (lv, blobs)
+                cx.memo.detection(cx.i, vi, || {
+                    let lv = levels(cx.img, view);
+                    let blobs = find_blobs(
+                        cx.img,
+                        view,
+                        &lv,
+                        r_mean,
+                        cx.cfg.analysis.threshold_fraction,
+                    );
+                    (lv, blobs)
+                })
             }),
         };
         // Views after the first take identity from it through the x both views see.
