@@ -82,8 +82,11 @@ impl Ahead {
 #[derive(Default)]
 pub struct FitMemo {
     fits: Mutex<HashMap<(usize, FitKey), BlobFit>>,
-    detected: Mutex<HashMap<(usize, usize), (ViewLevels, Vec<Blob>)>>,
+    detected: Mutex<HashMap<(usize, usize), Detection>>,
 }
+
+/// One view's detection in one frame: its levels and its blobs.
+type Detection = (ViewLevels, Vec<Blob>);
 
 impl FitMemo {
     /// Frame `i`'s view `vi`: its levels and blobs, from the memo where detected before, else
@@ -92,8 +95,8 @@ impl FitMemo {
         &self,
         i: usize,
         vi: usize,
-        detect: impl FnOnce() -> (ViewLevels, Vec<Blob>),
-    ) -> (ViewLevels, Vec<Blob>) {
+        detect: impl FnOnce() -> Detection,
+    ) -> Detection {
         if let Some(d) = self
             .detected
             .lock()
