@@ -288,6 +288,14 @@ struct RingPixel {
     area: Area,
 }
 
+impl RingPixel {
+    /// Whether the model is averaged over this pixel in 3 × 3 parts: in the last round
+    /// (`area`), where an edge crosses it.
+    fn in_parts(&self, area: bool) -> bool {
+        area && self.area == Area::Fine
+    }
+}
+
 /// The logistic step l(x) = 1/(1 + e^{−x/s}), its integral sp(x) = s·ln(1 + e^{x/s}) and
 /// ∂sp/∂s, from one exponential and without overflow for any x/s.
 fn softplus(x: f64, s: f64) -> (f64, f64, f64) {
@@ -405,8 +413,7 @@ where
         for k in 0..N {
             let o = 1 + DISC_PARAMS * k;
             let (du, dv) = (u - p[o], v - p[o + 1]);
-            // √ rather than hypot: the hot path, with no risk of overflow at pixel scale.
-            let d = (du * du + dv * dv).sqrt().max(1e-9);
+            let d = dist(du, dv).max(1e-9);
             let (cs, sn) = (du / d, dv / d);
             let x = p[o + 2] - d;
             let s = p[o + 3];
@@ -512,10 +519,10 @@ where
     // the edge crosses is averaged in 3 × 3 parts; elsewhere, and in the rounds that find the
     // dots, the pixel is one box.
     let eval = |p: &Vp<P>, px: &RingPixel, area: bool| -> (f64, Vp<P>) {
-        let offsets: &[f64] = match (area, px.area) {
-            (true, Area::Fine) => &SUBPIXEL_OFFSETS,
-            _ => return at_point(p, px.u, px.v, 1.0, px.hidden),
-        };
+        if !px.in_parts(area) {
+            return at_point(p, px.u, px.v, 1.0, px.hidden);
+        }
+        let offsets = &SUBPIXEL_OFFSETS;
         let h = 1.0 / offsets.len() as f64;
         let mut model = 0.0;
         let mut j = Vp::<P>::zeros();
@@ -677,7 +684,7 @@ where
         let mut res = [0.0; BATCH];
         let mut filled = 0;
         for q in keep {
-            samples += if area && q.area == Area::Fine {
+            samples += if q.in_parts(area) {
                 SUBPIXEL_OFFSETS.len() * SUBPIXEL_OFFSETS.len()
             } else {
                 1
