@@ -243,9 +243,9 @@ pub(crate) enum BenchWhat {
         /// The folder holding the recordings, e.g. the lab's shared validation set.
         dir: PathBuf,
     },
-    /// The analysis on non-ideal rigs drawn at random (roll, mirror tilt, perspective; varied
-    /// looks), each analysed with its exact map, with the maps calibrate finds, and with the
-    /// shorthand (which must warn).
+    /// The analysis on non-ideal rigs drawn at random (roll, mirror tilt, the direct camera's
+    /// pitch and yaw, perspective, lens; varied looks), each analysed with its exact map, with
+    /// the maps calibrate finds, and with the shorthand (which must warn).
     Rigs {
         /// How many rigs.
         #[arg(long, default_value_t = 12)]

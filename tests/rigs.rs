@@ -414,3 +414,59 @@ fn calibrate_finds_the_mirrors_edge_where_the_configs_regions_cut_through_a_view
         "direct scale {found} px/mm with the found regions, {typed} ± {sigma} with the right ones"
     );
 }
+
+/// The thesis geometry (config/default.toml) as `[geometry]` tables, with `extra` keys in each.
+fn thesis_geometry(extra: &str) -> String {
+    format!(
+        "[geometry.direct]\nregion = [0, 0, 240, 96]\npx_per_mm = 2.1576\norigin_px = [119.5, 44.0]\nu_axis = \"+x\"\nv_axis = \"-y\"\n{extra}\n\
+         [geometry.mirror]\nregion = [0, 96, 240, 96]\npx_per_mm = 2.1175\norigin_px = [121.0, 144.0]\nu_axis = \"+x\"\nv_axis = \"+z\"\n{extra}\n"
+    )
+}
+
+#[test]
+fn a_lens_in_the_config_takes_out_the_bias_it_leaves_and_calibrate_finds_it() {
+    // A barrel lens that moves the frame's corners by 3 % (4.6 px), both views through it.
+    let t = tempfile::tempdir().unwrap();
+    let (_, truth) = run(t.path(), "[sim]\nseed = 41\nlens_k1 = -0.03\n");
+    let session = common::first_session(t.path());
+    // The lens in the config, written here from the frame (its centre and half-diagonal), not
+    // from hw-sim's truth.
+    let lens = format!(
+        "lens_k1 = -0.03\nlens_centre_px = [119.5, 95.5]\nlens_radius_px = {:?}\n",
+        0.5 * 240f64.hypot(192.0)
+    );
+    std::fs::write(t.path().join("lens.toml"), thesis_geometry(&lens)).unwrap();
+    std::fs::write(t.path().join("none.toml"), thesis_geometry("")).unwrap();
+    let with_lens = analyze_with(t.path(), &session, "lens.toml", "lens");
+    let without = analyze_with(t.path(), &session, "none.toml", "none");
+    let err = |r: &Value| r["e"]["value"].as_f64().unwrap() - truth["e"].as_f64().unwrap();
+    check(&with_lens, &truth, "e", 0.004, "lens in the config");
+    check(&with_lens, &truth, "psi1", 0.02, "lens in the config");
+    check(&with_lens, &truth, "psi2", 0.02, "lens in the config");
+    // Unmodelled, the lens moves e by about −0.45·k1 (+0.013 here).
+    assert!(
+        err(&without) > 0.006 && err(&with_lens).abs() < 0.5 * err(&without),
+        "Δe {} with the lens in the config, {} without",
+        err(&with_lens),
+        err(&without)
+    );
+    // calibrate, given only the shorthand (no lens), finds a barrel lens and writes it into
+    // both views; its maps give e within 0.01.
+    let out = common::impactcam(
+        t.path(),
+        &["calibrate", session.to_str().unwrap(), "--out", "cal.toml"],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let cal = std::fs::read_to_string(t.path().join("cal.toml")).unwrap();
+    let k1: Vec<f64> = cal
+        .lines()
+        .filter_map(|l| l.strip_prefix("lens_k1 = "))
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert!(
+        k1.len() == 2 && k1[0] == k1[1] && (-0.045..-0.01).contains(&k1[0]),
+        "a barrel lens in both views: {k1:?}\n{cal}"
+    );
+    let calibrated = analyze_with(t.path(), &session, "cal.toml", "cal");
+    check(&calibrated, &truth, "e", 0.01, "calibrated lens");
+}

@@ -39,6 +39,12 @@ impl SimLab {
             v.origin_px[1] += cfg.mirror_offset_error_px[1];
             v.turn_about_x(2.0 * cfg.mirror_tilt_deg.to_radians());
         }
+        // The direct camera not square to the plane of collision: turned before the roll (which
+        // turns the image about the frame's centre).
+        for v in scene.views.iter_mut().filter(|v| v.name == "direct") {
+            v.turn_about_x(cfg.direct_pitch_deg.to_radians());
+            v.turn_about_y(cfg.direct_yaw_deg.to_radians());
+        }
         for v in scene.views.iter_mut() {
             v.distance_mm = cfg.perspective_distance_mm;
         }

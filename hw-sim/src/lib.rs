@@ -27,7 +27,7 @@ mod rng;
 pub mod scenario;
 
 pub use camera::{SimCamera, SimError, SimFrame};
-pub use config::{LabConfig, Pace, Scene, SphereSpec, ViewSpec};
+pub use config::{LabConfig, Lens, Pace, Scene, SphereSpec, ViewSpec};
 pub use lab::SimLab;
 pub use look::{Look, MarkerPaint, SurfaceKind, ViewLook};
 pub use physics::{Material, Outcome};

@@ -217,8 +217,8 @@ pub fn lift(
 
 /// As `lift`, for a sphere whose centre is known to be at world point `at`: the dot's offset is
 /// read through the view's map there (a pinhole's scale and line of sight at the sphere, an
-/// affine matrix as it is) instead of the view's scale and axes at the origin. Aligned views are
-/// lifted exactly as by `lift`.
+/// affine matrix as it is, and a lens's stretch there) instead of the view's scale and axes at
+/// the origin. Aligned views without a lens are lifted exactly as by `lift`.
 pub fn lift_at(
     view: &View,
     dot_px: [f64; 2],
@@ -226,7 +226,7 @@ pub fn lift_at(
     radius_mm: f64,
     at: &V3,
 ) -> Option<MarkerObs> {
-    if view.aligned {
+    if view.aligned && view.lens.is_none() {
         return lift(view, dot_px, centre_px, radius_mm);
     }
     let (j, toward) = view.local_at(at);

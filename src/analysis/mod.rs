@@ -17,6 +17,7 @@ mod geometry_sigma;
 pub mod image;
 mod impulse;
 pub mod kinematics;
+pub mod lens;
 pub mod line_fit;
 pub mod markers;
 mod phases;

@@ -1,6 +1,8 @@
 //! `impactcam bench rigs`: the analysis on non-ideal rigs drawn at random — the camera rolled
-//! up to ±2°, the mirror tilted up to ±3° from 45°, every other rig seen in perspective from
-//! 300 mm, each with a look drawn from all families ("varied") — and each recording analysed
+//! up to ±2°, the mirror tilted up to ±3° from 45°, the direct camera pitched and yawed up to
+//! ±1.5° (not square to the plane of collision), every other rig seen in perspective from
+//! 300 mm, every third through a lens of radial distortion up to ±3 % at the frame's corners,
+//! each with a look drawn from all families ("varied") — and each recording analysed
 //! three ways: with the rig's exact map (from the simulator's truth), with the maps `calibrate`
 //! finds on that same recording, and with the shorthand geometry, which does not describe the
 //! rig and must say so. Errors are against the simulator's truth; z = error / reported σ.
@@ -17,10 +19,14 @@ use std::path::Path;
 struct RigResult {
     roll_deg: f64,
     tilt_deg: f64,
+    pitch_yaw_deg: [f64; 2],
     distance_mm: Option<f64>,
+    lens_k1: f64,
     look: String,
     exact: Result<[Option<(f64, f64)>; 3], String>,
     calibrated: Result<[Option<(f64, f64)>; 3], String>,
+    /// The lens calibrate fitted: k1, its σ, and whether it was kept.
+    calibrated_k1: Option<(f64, f64, bool)>,
     /// Whether the shorthand's report warned, and its Δe with σ.
     shorthand: Option<(bool, Option<(f64, f64)>)>,
 }
@@ -55,6 +61,21 @@ fn exact_geometry(cfg: &Config, truth: &Value) -> Result<Geometry, String> {
         let o = [num(&g["origin_px"][0])?, num(&g["origin_px"][1])?];
         Ok(ViewGeometry::affine(region, m, o))
     };
+    // The lens the simulator drew the view through, if any.
+    let with_lens = |name: &str, mut v: ViewGeometry| -> Result<ViewGeometry, String> {
+        let l = &truth["geometry"][name]["lens"];
+        if l.is_object() {
+            let num = |v: &Value| {
+                v.as_f64()
+                    .ok_or(format!("truth.json geometry.{name}.lens: not a number"))
+            };
+            v.lens_k1 = Some(num(&l["k1"])?);
+            v.lens_centre_px = Some([num(&l["centre_px"][0])?, num(&l["centre_px"][1])?]);
+            v.lens_radius_px = Some(num(&l["radius_px"])?);
+        }
+        Ok(v)
+    };
+    let view = |name: &str, region| view(name, region).and_then(|v| with_lens(name, v));
     let region = |v: &Option<ViewGeometry>| v.as_ref().map(|g| g.region).unwrap_or([0; 4]);
     Ok(Geometry {
         direct: Some(view("direct", region(&cfg.geometry.direct))?),
@@ -88,14 +109,23 @@ fn run_rig(seed: u64, dir: &Path) -> Result<RigResult, String> {
     let mut rng = hw_sim::Rng::new(0x5249_4753 ^ seed);
     let roll = 4.0 * rng.uniform() - 2.0;
     let tilt = 6.0 * rng.uniform() - 3.0;
+    let pitch_yaw = [0, 1].map(|_| 3.0 * rng.uniform() - 1.5);
     let distance = (seed % 2 == 1).then_some(300.0);
+    let lens_k1 = if seed % 3 == 2 {
+        0.06 * rng.uniform() - 0.03
+    } else {
+        0.0
+    };
     let mut cfg = Config::default_config();
     cfg.recording.dir = dir.to_path_buf();
     cfg.sim.seed = seed;
     cfg.sim.look_family = Some("varied".into());
     cfg.sim.camera_roll_deg = roll;
     cfg.sim.mirror_tilt_deg = tilt;
+    cfg.sim.direct_pitch_deg = pitch_yaw[0];
+    cfg.sim.direct_yaw_deg = pitch_yaw[1];
     cfg.sim.perspective_distance_mm = distance;
+    cfg.sim.lens_k1 = lens_k1;
     let session = super::record_sim(&cfg)?;
     let result = (|| {
         let truth: Value = std::fs::read_to_string(session.join("truth.json"))
@@ -111,9 +141,11 @@ fn run_rig(seed: u64, dir: &Path) -> Result<RigResult, String> {
         let mut exact_cfg = cfg.clone();
         exact_cfg.geometry = exact_geometry(&cfg, &truth)?;
         let exact = analyse(&session, &exact_cfg).map(|r| errors(&r, &truth));
+        let mut calibrated_k1 = None;
         let calibrated = crate::calibrate::calibrate_path(&session, Some(&cfg))
             .map_err(|e| e.to_string())
             .and_then(|(cal, _)| {
+                calibrated_k1 = Some((cal.lens_k1.value, cal.lens_k1.sigma, cal.lens_kept));
                 let mut c = cfg.clone();
                 c.geometry = cal.geometry;
                 analyse(&session, &c)
@@ -122,10 +154,13 @@ fn run_rig(seed: u64, dir: &Path) -> Result<RigResult, String> {
         Ok(RigResult {
             roll_deg: roll,
             tilt_deg: tilt,
+            pitch_yaw_deg: pitch_yaw,
             distance_mm: distance,
+            lens_k1,
             look,
             exact,
             calibrated,
+            calibrated_k1,
             shorthand,
         })
     })();
@@ -138,15 +173,17 @@ pub fn rigs(n: usize, dir: &Path) -> String {
     let results: Vec<Result<RigResult, String>> =
         (0..n as u64).map(|i| run_rig(1000 + i, dir)).collect();
     let mut out = format!(
-        "{n} non-ideal rigs (roll ±2°, mirror tilt ±3°, every other one a pinhole at 300 mm; varied looks), each analysed with its exact map, with the maps calibrate finds on it, and with the shorthand\n"
+        "{n} non-ideal rigs (roll ±2°, mirror tilt ±3°, direct camera's pitch and yaw ±1.5°, every other one a pinhole at 300 mm, every third through a lens of k1 up to ±0.03; varied looks), each analysed with its exact map, with the maps calibrate finds on it, and with the shorthand\n"
     );
     let _ = writeln!(
         out,
-        "{:>3} {:>6} {:>6} {:>6} {:<10} | {:>16} {:>8} {:>8} | {:>16} {:>8} {:>8} | shorthand Δe (z)",
+        "{:>3} {:>6} {:>6} {:>11} {:>6} {:>7} {:<10} | {:>16} {:>8} {:>8} | {:>16} {:>8} {:>8} {:>17} | shorthand Δe (z)",
         "#",
         "roll°",
         "tilt°",
+        "pitch/yaw°",
         "D mm",
+        "k1",
         "look",
         "exact Δe (z)",
         "Δψ1",
@@ -154,6 +191,7 @@ pub fn rigs(n: usize, dir: &Path) -> String {
         "calib. Δe (z)",
         "Δψ1",
         "Δψ2",
+        "calib. k1 (kept)",
     );
     let cell = |x: &Option<(f64, f64)>| match x {
         Some((e, _)) => format!("{e:+.4}"),
@@ -185,15 +223,25 @@ pub fn rigs(n: usize, dir: &Path) -> String {
         };
         let _ = writeln!(
             out,
-            "{i:>3} {:>+6.2} {:>+6.2} {:>6} {:<10} | {} | {} | {}",
+            "{i:>3} {:>+6.2} {:>+6.2} {:>11} {:>6} {:>7} {:<10} | {} | {} {:>17} | {}",
             r.roll_deg,
             r.tilt_deg,
+            format!("{:+.2}/{:+.2}", r.pitch_yaw_deg[0], r.pitch_yaw_deg[1]),
             r.distance_mm
                 .map(|d| format!("{d:.0}"))
                 .unwrap_or_else(|| "-".into()),
+            if r.lens_k1 != 0.0 {
+                format!("{:+.4}", r.lens_k1)
+            } else {
+                "-".into()
+            },
             r.look,
             side(&r.exact),
             side(&r.calibrated),
+            match r.calibrated_k1 {
+                Some((k, s, kept)) => format!("{k:+.4}±{s:.4}{}", if kept { " *" } else { "  " }),
+                None => "-".into(),
+            },
             match r.shorthand {
                 Some((warned, e)) => format!(
                     "{} {}",

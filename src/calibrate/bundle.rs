@@ -20,25 +20,62 @@ pub(super) struct FlightPoint {
 }
 
 /// What the joint fit found: the direct view's scale and roll, the mirror's scale, roll, tilt
-/// and u offset, with σ, and the residuals per view.
+/// and u offset, the lens's k1, with σ, and the residuals per view.
 pub(super) struct Bundle {
     pub(super) direct_scale: Fitted,
     pub(super) direct_roll: Fitted,
     /// Inverse camera distance of [direct, mirror], 1/mm.
     pub(super) kappa: [Fitted; 2],
+    /// The lens's radial distortion (`analysis::lens`, about `LensFrame`'s centre and radius);
+    /// σ 0 when it was held at 0.
+    pub(super) lens_k1: Fitted,
     pub(super) mirror: Option<MirrorFit>,
     pub(super) residual_rms_px: [f64; 2],
 }
 
-/// (parameter, σ) of the bundle's priors: the mirror's turns about x, y, z (rad) and the two
-/// cameras' 1/distance (1/mm).
-pub(super) const PRIORS: [(usize, f64); 5] =
-    [(3, 0.0873), (4, 0.0873), (5, 0.0873), (7, 0.01), (8, 0.01)];
+/// (parameter, σ) of the bundle's priors: the mirror's turns about x, y, z (rad), the two
+/// cameras' 1/distance (1/mm) and the lens's k1 (a lens that moves the frame's corners by 5 %
+/// is far beyond any a measuring rig uses).
+pub(super) const PRIORS: [(usize, f64); 6] = [
+    (3, 0.0873),
+    (4, 0.0873),
+    (5, 0.0873),
+    (7, 0.01),
+    (8, 0.01),
+    (9, 0.05),
+];
+
+/// Where the one lens both views are seen through has its centre, and the distance at which its
+/// k1 is the fractional displacement: the frame's centre and half-diagonal, px.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LensFrame {
+    pub(super) centre_px: [f64; 2],
+    pub(super) radius_px: f64,
+}
+
+impl LensFrame {
+    pub(super) fn of_frame(width: u32, height: u32) -> LensFrame {
+        let (w, h) = (f64::from(width), f64::from(height));
+        LensFrame {
+            centre_px: [(w - 1.0) / 2.0, (h - 1.0) / 2.0],
+            radius_px: 0.5 * w.hypot(h),
+        }
+    }
+
+    pub(super) fn lens(&self, k1: f64) -> crate::analysis::lens::Lens {
+        crate::analysis::lens::Lens {
+            k1,
+            centre_px: self.centre_px,
+            radius_px: self.radius_px,
+        }
+    }
+}
 
 /// Both views fitted together (a small bundle adjustment): every flight is a ballistic
 /// trajectory with g known (x, z straight lines, y a parabola), seen by the direct view through
-/// (s_d, φ_d) and by the mirror through its scale, its turn about x, y and z, and o_u. Held: the direct view's origin and
-/// the mirror's v offset (the world origin, a choice), the mirror's flips.
+/// (s_d, φ_d) and by the mirror through its scale, its turn about x, y and z, and o_u; both
+/// through one lens of radial distortion k1 (held at 0 unless `lens` is given). Held: the direct
+/// view's origin and the mirror's v offset (the world origin, a choice), the mirror's flips.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fit_bundle(
     obs: &[FrameObs],
@@ -49,6 +86,7 @@ pub(super) fn fit_bundle(
     origin_direct: [f64; 2],
     start: (f64, f64),
     provisional_mirror: Option<&View>,
+    lens: Option<LensFrame>,
 ) -> Result<Bundle, String> {
     let mut pts = Vec::new();
     for (k, frames) in phases.iter().enumerate() {
@@ -86,9 +124,13 @@ pub(super) fn fit_bundle(
         .map(|v| (z_sign(v), v.origin_px[1]))
         .unwrap_or((1.0, 0.0));
     // Parameters: s_d, φ_d, s_m, the mirror's turn about x, y, z, o_u, the direct and the
-    // mirror camera's inverse distance κ (1/mm; 0 is orthographic), then
+    // mirror camera's inverse distance κ (1/mm; 0 is orthographic), the lens's k1, then
     // (x0, vx, y0, vy, z0, vz) per flight.
-    let nv = 9;
+    let nv = 10;
+    let frame = lens.unwrap_or(LensFrame {
+        centre_px: [0.0, 0.0],
+        radius_px: 1.0,
+    });
     let np = nv + 6 * flights.len();
     let mut th = DVector::zeros(np);
     th[0] = start.0;
@@ -176,16 +218,23 @@ pub(super) fn fit_bundle(
                 (&mm, [th[6], ov], fm, th[8])
             };
             let k = 1.0 / (1.0 - kappa * facing.dot(&V3::from(w)));
+            let ideal =
+                [0, 1].map(|c| k * (m[c][0] * w[0] + m[c][1] * w[1] + m[c][2] * w[2]) + o[c]);
+            let seen = if th[9] != 0.0 {
+                frame.lens(th[9]).distort(ideal)
+            } else {
+                ideal
+            };
             for c in 0..2 {
-                r[2 * i + c] = weights[i]
-                    * (p.q[c] - (k * (m[c][0] * w[0] + m[c][1] * w[1] + m[c][2] * w[2]) + o[c]));
+                r[2 * i + c] = weights[i] * (p.q[c] - seen[c]);
             }
         }
         r
     };
-    // Without a mirror its parameters are held (their columns left out).
+    // Without a mirror its parameters are held (their columns left out); without a lens, k1.
     let free: Vec<usize> = (0..np)
-        .filter(|&c| with_mirror || !(2..nv).contains(&c))
+        .filter(|&c| c != 9 || lens.is_some())
+        .filter(|&c| with_mirror || !(2..nv - 1).contains(&c))
         .filter(|&c| with_mirror || (c < nv || (c - nv) % 6 < 4))
         .collect();
     // Levenberg–Marquardt: Gauss–Newton steps, damped where they would not lower the cost.
@@ -298,6 +347,7 @@ pub(super) fn fit_bundle(
         direct_scale: fitted(0, 1.0),
         direct_roll: fitted(1, deg),
         kappa: [fitted(7, 1.0), fitted(8, 1.0)],
+        lens_k1: fitted(9, 1.0),
         mirror: with_mirror.then(|| MirrorFit {
             scale: fitted(2, 1.0),
             scale_from_diameter: Fitted {
@@ -428,6 +478,7 @@ mod tests {
                 od,
                 (2.11, 0.0),
                 Some(&provisional),
+                None,
             )
             .unwrap();
             let m = b.mirror.unwrap();
@@ -447,6 +498,82 @@ mod tests {
                 "perspective found"
             );
             assert!(m.residual_rms_px < 0.03, "{}", m.residual_rms_px);
+        }
+    }
+
+    /// Flights seen through a lens that moves the frame's corners by 2 % (barrel) give the lens's
+    /// k1 back within its σ, with the maps still right; seen through none, k1 comes out at 0
+    /// within its σ.
+    #[test]
+    fn the_bundle_finds_the_lens_the_flights_were_seen_through() {
+        let frame = LensFrame::of_frame(240, 192);
+        for (k1, seed) in [(-0.02, 7), (0.0, 8)] {
+            let (od, om) = ([119.5, 44.0], [121.0, 144.0]);
+            let zero = Fitted {
+                value: 0.0,
+                sigma: 0.0,
+            };
+            let mut direct = View::from_config(
+                ViewKind::Direct,
+                &view_geometry(
+                    [0, 0, 240, 96],
+                    direct_matrix(2.1576, 0.4f64.to_radians()),
+                    od,
+                    ViewKind::Direct,
+                    zero,
+                ),
+            );
+            let mut mirror = View::from_config(
+                ViewKind::Mirror,
+                &view_geometry(
+                    [0, 96, 240, 96],
+                    mirror_matrix(2.1175, [0.02, 0.0, 0.0], 1.0, 1.0),
+                    om,
+                    ViewKind::Mirror,
+                    zero,
+                ),
+            );
+            if k1 != 0.0 {
+                direct.lens = Some(frame.lens(k1));
+                mirror.lens = Some(frame.lens(k1));
+            }
+            let (obs, phases) = flights_through([&direct, &mirror], 0.02, seed);
+            let provisional = View::from_config(
+                ViewKind::Mirror,
+                &ViewGeometry::shorthand([0, 96, 240, 96], 2.1175, om, "+x", "+z"),
+            );
+            let fit = |lens| {
+                fit_bundle(
+                    &obs,
+                    &phases,
+                    G,
+                    0,
+                    Some(1),
+                    od,
+                    (2.15, 0.0),
+                    Some(&provisional),
+                    lens,
+                )
+                .unwrap()
+            };
+            let b = fit(Some(frame));
+            within("k1", b.lens_k1, k1);
+            assert!(b.lens_k1.sigma < 0.004, "k1 known to {}", b.lens_k1.sigma);
+            within("direct scale", b.direct_scale, 2.1576);
+            within("direct roll", b.direct_roll, 0.4);
+            within("mirror scale", b.mirror.as_ref().unwrap().scale, 2.1175);
+            if k1 != 0.0 {
+                // Held at 0, the same flights give a direct scale off by over 1 % (more than
+                // twice its σ): the other maps' parameters take up what the lens did.
+                let held = fit(None);
+                assert_eq!(held.lens_k1.sigma, 0.0);
+                let off = held.direct_scale.value - 2.1576;
+                assert!(
+                    off > 2.0 * held.direct_scale.sigma && off > 0.01 * 2.1576,
+                    "held at 0: scale {:?}",
+                    held.direct_scale
+                );
+            }
         }
     }
 }

@@ -9,12 +9,15 @@
 //! - the direct view's scale from free fall (g known; the imaged diameter is the check) and its
 //!   roll from the image direction of gravity;
 //! - the mirror's scale and its turns about x (tilt), y (roll) and z (yaw) from the x both views
-//!   share and from free fall; each camera's distance where perspective shows.
+//!   share and from free fall; each camera's distance where perspective shows;
+//! - one lens's radial distortion for both views, kept where the flights show it beyond 3σ.
 //!
 //! What the data cannot give is kept from the config: the world origin (the direct view's
 //! `origin_px`, and the mirror's v offset, which sets z = 0), the sign of z in the mirror (which
 //! side of the collision the mirror is on), and the views' layout (above each other or side by
-//! side, and which side is the direct view).
+//! side, and which side is the direct view). The direct camera's pitch and yaw cannot be told
+//! from a change of the flights either: the camera is taken as square, with
+//! `DIRECT_SQUARE_DEG` of uncertainty that the analysis carries.
 
 use crate::analysis::geometry::ViewKind;
 
@@ -27,7 +30,7 @@ mod regions;
 
 use crate::analysis::{self, AnalysisError, FrameSource};
 use crate::config::Config;
-use bundle::fit_bundle;
+use bundle::{fit_bundle, LensFrame};
 use flights::{diameter_scale, flights, parabola_acceleration};
 use maps::{direct_matrix, distance, mirror_matrix, view_geometry};
 use provisional::{align_mirror, line_fit, local_scale, set_scale, z_sign};
@@ -89,6 +92,10 @@ pub struct Calibrated {
     pub regions: String,
     pub direct: DirectFit,
     pub mirror: Option<MirrorFit>,
+    /// The lens's radial distortion as fitted (k1 at the frame's half-diagonal, about its
+    /// centre), and whether it was kept (beyond 3σ) and written into both views.
+    pub lens_k1: Fitted,
+    pub lens_kept: bool,
     pub geometry: crate::config::Geometry,
 }
 
@@ -162,6 +169,13 @@ pub fn calibrate_paths(
     })?;
     Ok((cal, png))
 }
+
+/// How square to the plane of collision the direct camera is taken to be, deg (one σ about
+/// world x and y): what squaring a camera by eye or with a spirit level gives. Free flight cannot
+/// measure it (a pitch shears z into y, which a change of trajectory does just as well), so
+/// calibrate writes it as the direct view's `turn_uncertainty_deg` about x and y, and the
+/// analysis carries it into every estimate. A user who knows better edits the two numbers.
+pub const DIRECT_SQUARE_DEG: f64 = 1.0;
 
 /// A scale's σ, %, as the config accepts it: at most 20 (a fit that knows the scale worse, or
 /// not at all, says 20 rather than writing a config the analysis would refuse).
@@ -402,17 +416,28 @@ pub fn calibrate(
         .map(|(_, o)| o)
         .ok_or_else(|| data("the direct view's provisional map is incomplete".into()))?;
     let mi = views.iter().position(|v| v.kind == ViewKind::Mirror);
-    let bundle = fit_bundle(
-        obs,
-        &phases,
-        g,
-        di,
-        mi,
-        origin_direct,
-        (scale_from_free_fall.value, roll_deg.value.to_radians()),
-        mi.map(|i| &views[i]),
-    )
-    .map_err(&data)?;
+    // One lens for both views, about the frame's centre. Its k1 is kept where the flights show
+    // it (beyond 3σ); else the maps are fitted again with none, as a lens-free rig's would be.
+    let (width, height) = src.dimensions();
+    let frame = LensFrame::of_frame(width, height);
+    let fit = |lens| {
+        fit_bundle(
+            obs,
+            &phases,
+            g,
+            di,
+            mi,
+            origin_direct,
+            (scale_from_free_fall.value, roll_deg.value.to_radians()),
+            mi.map(|i| &views[i]),
+            lens,
+        )
+        .map_err(&data)
+    };
+    let with_lens = fit(Some(frame))?;
+    let with_lens_k1 = with_lens.lens_k1;
+    let lens_found = with_lens_k1.value.abs() > 3.0 * with_lens_k1.sigma;
+    let bundle = if lens_found { with_lens } else { fit(None)? };
     let m_direct = direct_matrix(
         bundle.direct_scale.value,
         bundle.direct_roll.value.to_radians(),
@@ -428,13 +453,18 @@ pub fn calibrate(
         mirror: None,
     };
     // How well each map is known, for the analysis to carry into its estimates' σ. The direct
-    // camera's pitch and yaw are not determined (see the docs) and are left at 0.
+    // camera's pitch and yaw are not determined (see the docs): taken as 0 ± DIRECT_SQUARE_DEG.
     if let Some(v) = geometry.direct.as_mut() {
         v.px_per_mm_uncertainty_percent = Some(percent_known(
             100.0 * bundle.direct_scale.sigma / bundle.direct_scale.value,
         ));
-        v.turn_uncertainty_deg = Some([0.0, 0.0, degrees_known(bundle.direct_roll.sigma)]);
+        v.turn_uncertainty_deg = Some([
+            DIRECT_SQUARE_DEG,
+            DIRECT_SQUARE_DEG,
+            degrees_known(bundle.direct_roll.sigma),
+        ]);
     }
+    let lens_k1 = with_lens_k1;
     let mut mirror = None;
     if let (Some(mi), Some(mut fit)) = (mi, bundle.mirror) {
         let region = cfg
@@ -465,6 +495,17 @@ pub fn calibrate(
         }
         mirror = Some(fit);
     }
+    if lens_found {
+        let lens = frame.lens(lens_k1.value);
+        for v in [geometry.direct.as_mut(), geometry.mirror.as_mut()]
+            .into_iter()
+            .flatten()
+        {
+            v.lens_k1 = Some(lens.k1);
+            v.lens_centre_px = Some(lens.centre_px);
+            v.lens_radius_px = Some(lens.radius_px);
+        }
+    }
     Ok(Calibrated {
         source: name,
         recordings: used,
@@ -480,6 +521,8 @@ pub fn calibrate(
             camera_distance_mm: distance(bundle.kappa[0]),
         },
         mirror,
+        lens_k1,
+        lens_kept: lens_found,
         geometry,
     })
 }

@@ -54,10 +54,23 @@ impl Calibrated {
                 m.points
             );
         }
-        out +=
+        out += &format!(
+            "# lens: k1 {} (the fractional displacement at the frame's corners, about its centre);\n\
+             #   {}; its σ is not carried into the estimates' uncertainty\n",
+            p(&self.lens_k1, "", 5),
+            if self.lens_kept {
+                "beyond 3σ, so written into both views"
+            } else {
+                "within 3σ of none, so the maps were fitted again without a lens"
+            },
+        );
+        out += &format!(
             "# px_per_mm_uncertainty_percent and turn_uncertainty_deg (about world x, y, z) are\n\
-                #   the σ above; the analysis carries them into every estimate's uncertainty. The\n\
-                #   direct camera's pitch and yaw (about x, y) are not determined here (0).\n";
+             #   the σ above; the analysis carries them into every estimate's uncertainty. The\n\
+             #   direct camera's pitch and yaw (about x, y) cannot be found from free flight: it is\n\
+             #   taken as square, 0 ± {} deg each (edit if it is known better).\n",
+            super::DIRECT_SQUARE_DEG
+        );
         for (name, v) in [
             ("direct", &self.geometry.direct),
             ("mirror", &self.geometry.mirror),
@@ -134,9 +147,16 @@ impl Calibrated {
     }
 }
 
-/// The two keys that say how well a view's map is known (none where calibrate set none).
+/// The keys that say how well a view's map is known (none where calibrate set none), and its
+/// lens where one was found.
 fn uncertainty_keys(v: &crate::config::ViewGeometry) -> String {
     let mut out = String::new();
+    if let (Some(k1), Some(c), Some(r)) = (v.lens_k1, v.lens_centre_px, v.lens_radius_px) {
+        out += &format!(
+            "lens_k1 = {k1:.6}\nlens_centre_px = [{:.2}, {:.2}]\nlens_radius_px = {r:.4}\n",
+            c[0], c[1]
+        );
+    }
     if let Some(p) = v.px_per_mm_uncertainty_percent {
         out += &format!("px_per_mm_uncertainty_percent = {p:.4}\n");
     }

@@ -295,6 +295,16 @@ pub struct ViewGeometry {
     /// uncertainty.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub turn_uncertainty_deg: Option<[f64; 3]>,
+    /// The lens's radial distortion (all three keys or none): an ideal image point p of the
+    /// map above is recorded at c + (p − c)·(1 + k1·|p − c|²/R²), c = `lens_centre_px`,
+    /// R = `lens_radius_px`; so k1 is the fractional displacement at distance R (negative:
+    /// barrel). `impactcam calibrate` writes them when it finds a lens.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lens_k1: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lens_centre_px: Option<[f64; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lens_radius_px: Option<f64>,
 }
 
 impl ViewGeometry {
@@ -718,6 +728,42 @@ mod tests {
             (
                 "turn_uncertainty_deg = [0.1, 0.2]",
                 "x.toml: invalid length 2, expected an array of length 3 (line",
+            ),
+        ] {
+            let e = mirror_with(&format!("{map}\n{keys}"))
+                .unwrap_or_else(|| panic!("{keys}: accepted"));
+            assert!(e.contains(expect), "{keys}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_lens_is_read_and_bad_or_partial_lenses_named() {
+        let map = "px_per_mm=2.0\norigin_px=[120.0,140.0]\nu_axis=\"+x\"\nv_axis=\"+z\"";
+        let lens = "lens_k1 = -0.02\nlens_centre_px = [119.5, 95.5]\nlens_radius_px = 153.7";
+        let t = format!("[geometry.mirror]\nregion=[0,96,240,96]\n{map}\n{lens}\n");
+        let c = Config::from_toml_str(&t, "x.toml").unwrap();
+        let m = c.geometry.mirror.as_ref().unwrap();
+        assert_eq!(
+            (m.lens_k1, m.lens_centre_px, m.lens_radius_px),
+            (Some(-0.02), Some([119.5, 95.5]), Some(153.7))
+        );
+        assert_eq!(Config::from_toml_str(&c.to_toml(), "again").unwrap(), c);
+        for (keys, expect) in [
+            (
+                "lens_k1 = -0.02",
+                "geometry.mirror.lens_k1, geometry.mirror.lens_centre_px, geometry.mirror.lens_radius_px: give all three or none",
+            ),
+            (
+                "lens_k1 = 0.3\nlens_centre_px = [119.5, 95.5]\nlens_radius_px = 153.7",
+                "geometry.mirror.lens_k1: 0.3 is out of range",
+            ),
+            (
+                "lens_k1 = 0.01\nlens_centre_px = [119.5, 95.5]\nlens_radius_px = 0.0",
+                "geometry.mirror.lens_radius_px: 0 is out of range",
+            ),
+            (
+                "lens_k1 = 0.01\nlens_centre_px = [119.5, 1e9]\nlens_radius_px = 150.0",
+                "geometry.mirror.lens_centre_px",
             ),
         ] {
             let e = mirror_with(&format!("{map}\n{keys}"))

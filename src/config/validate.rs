@@ -148,6 +148,7 @@ impl Config {
             }
             check_view_map(&key, v, plane)?;
             check_geometry_uncertainty(&key, v)?;
+            check_lens(&key, v)?;
         }
         for i in 0..2 {
             let (d, m) = self.spheres.sphere(i);
@@ -224,6 +225,41 @@ fn check_geometry_uncertainty(key: &str, v: &ViewGeometry) -> Result<(), String>
                 "{key}.turn_uncertainty_deg: {t:?} is out of range, expected three numbers from 0 to 10 (one σ of the turn about world x, y, z, deg)"
             ));
         }
+    }
+    Ok(())
+}
+
+/// A view's lens: all three keys or none; |k1| ≤ 0.2 (the fractional displacement at distance
+/// `lens_radius_px`; more than that and the distortion may fold within the frame), a centre
+/// and a positive radius in px.
+fn check_lens(key: &str, v: &ViewGeometry) -> Result<(), String> {
+    let given = [
+        v.lens_k1.is_some(),
+        v.lens_centre_px.is_some(),
+        v.lens_radius_px.is_some(),
+    ];
+    if given.iter().all(|g| !g) {
+        return Ok(());
+    }
+    let (Some(k1), Some(c), Some(r)) = (v.lens_k1, v.lens_centre_px, v.lens_radius_px) else {
+        return Err(format!(
+            "{key}.lens_k1, {key}.lens_centre_px, {key}.lens_radius_px: give all three or none (the lens's radial distortion, its centre and the distance at which k1 is the fractional displacement, px)"
+        ));
+    };
+    if !(k1.is_finite() && (-0.2..=0.2).contains(&k1)) {
+        return Err(format!(
+            "{key}.lens_k1: {k1} is out of range, expected -0.2 to 0.2 (the fractional displacement at lens_radius_px; negative: barrel)"
+        ));
+    }
+    if !c.iter().all(|x| x.is_finite() && x.abs() <= 1e5) {
+        return Err(format!(
+            "{key}.lens_centre_px: {c:?} is not a point, expected two finite numbers (px)"
+        ));
+    }
+    if !(r.is_finite() && (1.0..=1e5).contains(&r)) {
+        return Err(format!(
+            "{key}.lens_radius_px: {r} is out of range, expected 1 to 100000 (px; the frame's half-diagonal is usual)"
+        ));
     }
     Ok(())
 }
