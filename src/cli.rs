@@ -77,6 +77,14 @@ pub(crate) enum Command {
         /// Write the TOML here (and the PNG beside it, .png) instead of printing it.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// An image (TIFF, PNG, or a session's first frame) of a dot-grid target held in the
+        /// plane of collision, filling the direct view: the lens's distortion is taken from it
+        /// instead of from the flights.
+        #[arg(long, requires = "grid_pitch_mm")]
+        grid: Option<PathBuf>,
+        /// The grid's dot spacing, mm.
+        #[arg(long)]
+        grid_pitch_mm: Option<f64>,
     },
     /// Analyse a session, a multi-page greyscale TIFF recorded elsewhere, or (--tracks) centres
     /// digitised in other software.

@@ -196,9 +196,25 @@ fn real_main(cli: Cli) -> Result<i32> {
             }
             Ok(0)
         }
-        Command::Calibrate { paths, config, out } => {
+        Command::Calibrate {
+            paths,
+            config,
+            out,
+            grid,
+            grid_pitch_mm,
+        } => {
             let cfg = config.as_deref().map(Config::load).transpose()?;
-            let (cal, png) = impactcam::calibrate::calibrate_paths(&paths, cfg.as_ref())?;
+            let grid = match (grid.as_deref(), grid_pitch_mm) {
+                (Some(g), Some(p)) if p.is_finite() && (0.1..=1000.0).contains(&p) => Some((g, p)),
+                (Some(_), Some(p)) => {
+                    anyhow::bail!("--grid-pitch-mm: {p} is out of range, expected 0.1 to 1000 (mm between the grid's dots)")
+                }
+                (Some(_), None) => {
+                    anyhow::bail!("--grid needs --grid-pitch-mm (mm between the grid's dots)")
+                }
+                (None, _) => None,
+            };
+            let (cal, png) = impactcam::calibrate::calibrate_paths(&paths, cfg.as_ref(), grid)?;
             let text = cal.toml();
             match out {
                 Some(o) => {

@@ -15,6 +15,7 @@
 pub mod camera;
 pub mod clock;
 pub mod config;
+pub mod grid;
 pub mod lab;
 pub mod lcus;
 pub mod look;
@@ -28,6 +29,7 @@ pub mod scenario;
 
 pub use camera::{SimCamera, SimError, SimFrame};
 pub use config::{LabConfig, Lens, Pace, Scene, SphereSpec, ViewSpec};
+pub use grid::{render_grid, GridTarget};
 pub use lab::SimLab;
 pub use look::{Look, MarkerPaint, SurfaceKind, ViewLook};
 pub use physics::{Material, Outcome};

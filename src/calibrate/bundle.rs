@@ -74,7 +74,8 @@ impl LensFrame {
 /// Both views fitted together (a small bundle adjustment): every flight is a ballistic
 /// trajectory with g known (x, z straight lines, y a parabola), seen by the direct view through
 /// (s_d, φ_d) and by the mirror through its scale, its turn about x, y and z, and o_u; both
-/// through one lens of radial distortion k1 (held at 0 unless `lens` is given). Held: the direct
+/// through one lens of radial distortion k1 (held at 0 unless `lens` is given, and at
+/// `lens_k1_held` where that is given: a dot grid's). Held: the direct
 /// view's origin and the mirror's v offset (the world origin, a choice), the mirror's flips.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fit_bundle(
@@ -87,6 +88,7 @@ pub(super) fn fit_bundle(
     start: (f64, f64),
     provisional_mirror: Option<&View>,
     lens: Option<LensFrame>,
+    lens_k1_held: Option<f64>,
 ) -> Result<Bundle, String> {
     let mut pts = Vec::new();
     for (k, frames) in phases.iter().enumerate() {
@@ -133,6 +135,9 @@ pub(super) fn fit_bundle(
     });
     let np = nv + 6 * flights.len();
     let mut th = DVector::zeros(np);
+    if lens.is_some() {
+        th[9] = lens_k1_held.unwrap_or(0.0);
+    }
     th[0] = start.0;
     th[1] = start.1;
     if let Some(v) = provisional_mirror {
@@ -233,7 +238,7 @@ pub(super) fn fit_bundle(
     };
     // Without a mirror its parameters are held (their columns left out); without a lens, k1.
     let free: Vec<usize> = (0..np)
-        .filter(|&c| c != 9 || lens.is_some())
+        .filter(|&c| c != 9 || (lens.is_some() && lens_k1_held.is_none()))
         .filter(|&c| with_mirror || !(2..nv - 1).contains(&c))
         .filter(|&c| with_mirror || (c < nv || (c - nv) % 6 < 4))
         .collect();
@@ -479,6 +484,7 @@ mod tests {
                 (2.11, 0.0),
                 Some(&provisional),
                 None,
+                None,
             )
             .unwrap();
             let m = b.mirror.unwrap();
@@ -553,6 +559,7 @@ mod tests {
                     (2.15, 0.0),
                     Some(&provisional),
                     lens,
+                    None,
                 )
                 .unwrap()
             };

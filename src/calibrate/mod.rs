@@ -23,6 +23,7 @@ use crate::analysis::geometry::ViewKind;
 
 mod bundle;
 mod flights;
+pub mod grid;
 mod maps;
 mod output;
 mod provisional;
@@ -96,6 +97,8 @@ pub struct Calibrated {
     /// centre), and whether it was kept (beyond 3σ) and written into both views.
     pub lens_k1: Fitted,
     pub lens_kept: bool,
+    /// The dot grid's fit, where one was given (its k1 is then the one used).
+    pub grid: Option<grid::GridFit>,
     pub geometry: crate::config::Geometry,
 }
 
@@ -122,14 +125,17 @@ pub fn calibrate_path(
     path: &std::path::Path,
     cfg: Option<&Config>,
 ) -> Result<(Calibrated, Vec<u8>), crate::experiment::ExperimentError> {
-    calibrate_paths(&[path.to_path_buf()], cfg)
+    calibrate_paths(&[path.to_path_buf()], cfg, None)
 }
 
 /// As `calibrate_path`, pooling the flights of several recordings of one rig (the first sets
 /// the provisional scale; the config is the first session's own when none is given).
+/// `grid`: an image of a dot-grid target in the plane of collision (a TIFF, PNG or a session's
+/// first frame) and its dots' pitch, mm; the lens is then taken from it.
 pub fn calibrate_paths(
     paths: &[std::path::PathBuf],
     cfg: Option<&Config>,
+    grid: Option<(&std::path::Path, f64)>,
 ) -> Result<(Calibrated, Vec<u8>), crate::experiment::ExperimentError> {
     let first = paths.first().ok_or_else(|| AnalysisError::Input {
         source_name: "calibrate".into(),
@@ -154,7 +160,41 @@ pub fn calibrate_paths(
             .iter_mut()
             .map(|s| s.as_mut() as &mut dyn FrameSource)
             .collect();
-        calibrate(&mut refs, &cfg).map_err(|e| AnalysisError::Input {
+        let grid_image = match grid {
+            Some((path, pitch_mm)) => {
+                let mut img = analysis::image::GreyImage::new();
+                if path.is_dir() {
+                    // A session (or a directory of frames): its first frame.
+                    let mut src = analysis::source::open(path, Some(cfg.camera.frame_rate_hz))?;
+                    if src.is_empty() {
+                        return Err(AnalysisError::Input {
+                            source_name: path.display().to_string(),
+                            message: "no frame in it: expected an image of the dot grid".into(),
+                        }
+                        .into());
+                    }
+                    src.read(0, &mut img)?;
+                } else {
+                    // That one file, even if its name is numbered like a sequence's frame.
+                    let mut raw = Vec::new();
+                    let (w, h, bpp) = crate::footage::read_image(path, &mut raw).map_err(|e| {
+                        AnalysisError::Input {
+                            source_name: e.path.display().to_string(),
+                            message: e.message,
+                        }
+                    })?;
+                    img.load(&raw, w as usize, h as usize, bpp);
+                }
+                Some((img, pitch_mm))
+            }
+            None => None,
+        };
+        calibrate(
+            &mut refs,
+            &cfg,
+            grid_image.as_ref().map(|(img, p)| (img, *p)),
+        )
+        .map_err(|e| AnalysisError::Input {
             source_name: first.display().to_string(),
             message: e.to_string(),
         })?
@@ -201,6 +241,7 @@ fn degrees_known(d: f64) -> f64 {
 pub fn calibrate(
     sources: &mut [&mut dyn FrameSource],
     cfg: &Config,
+    grid: Option<(&analysis::image::GreyImage, f64)>,
 ) -> Result<Calibrated, CalibrateError> {
     let (src, others) = sources.split_first_mut().ok_or(CalibrateError::Data {
         source_name: "calibrate".into(),
@@ -420,7 +461,23 @@ pub fn calibrate(
     // it (beyond 3σ); else the maps are fitted again with none, as a lens-free rig's would be.
     let (width, height) = src.dimensions();
     let frame = LensFrame::of_frame(width, height);
-    let fit = |lens| {
+    // A dot grid's lens, where one is given, is held; the flights then fit the rest.
+    let grid_fit = match grid {
+        Some((img, pitch_mm)) => {
+            if (img.width, img.height) != (width as usize, height as usize) {
+                return Err(data(format!(
+                    "the dot grid's image is {}×{} px, the recording's frames {width}×{height}: they must come from the same camera",
+                    img.width, img.height
+                )));
+            }
+            Some(
+                grid::fit_grid(img, direct_cfg.region, pitch_mm, frame)
+                    .map_err(|e| data(format!("the dot grid: {e}")))?,
+            )
+        }
+        None => None,
+    };
+    let fit = |lens, held| {
         fit_bundle(
             obs,
             &phases,
@@ -431,13 +488,20 @@ pub fn calibrate(
             (scale_from_free_fall.value, roll_deg.value.to_radians()),
             mi.map(|i| &views[i]),
             lens,
+            held,
         )
         .map_err(&data)
     };
-    let with_lens = fit(Some(frame))?;
-    let with_lens_k1 = with_lens.lens_k1;
-    let lens_found = with_lens_k1.value.abs() > 3.0 * with_lens_k1.sigma;
-    let bundle = if lens_found { with_lens } else { fit(None)? };
+    let (bundle, with_lens_k1, lens_found) = match &grid_fit {
+        Some(gf) => (fit(Some(frame), Some(gf.lens_k1.value))?, gf.lens_k1, true),
+        None => {
+            let with_lens = fit(Some(frame), None)?;
+            let k1 = with_lens.lens_k1;
+            let found = k1.value.abs() > 3.0 * k1.sigma;
+            let bundle = if found { with_lens } else { fit(None, None)? };
+            (bundle, k1, found)
+        }
+    };
     let m_direct = direct_matrix(
         bundle.direct_scale.value,
         bundle.direct_roll.value.to_radians(),
@@ -523,6 +587,7 @@ pub fn calibrate(
         mirror,
         lens_k1,
         lens_kept: lens_found,
+        grid: grid_fit,
         geometry,
     })
 }

@@ -54,16 +54,32 @@ impl Calibrated {
                 m.points
             );
         }
-        out += &format!(
-            "# lens: k1 {} (the fractional displacement at the frame's corners, about its centre);\n\
-             #   {}; its σ is not carried into the estimates' uncertainty\n",
-            p(&self.lens_k1, "", 5),
-            if self.lens_kept {
-                "beyond 3σ, so written into both views"
-            } else {
-                "within 3σ of none, so the maps were fitted again without a lens"
-            },
-        );
+        match &self.grid {
+            Some(g) => {
+                out += &format!(
+                    "# lens: k1 {} (the fractional displacement at the frame's corners, about its centre)\n\
+                     #   from the dot grid ({} dots, residuals {:.3} px RMS), written into both views and held\n\
+                     #   while the flights fit the rest; the grid's scale {} at its central dot\n\
+                     #   (free fall's is above); k1's σ is not carried into the estimates' uncertainty\n",
+                    p(&g.lens_k1, "", 5),
+                    g.dots,
+                    g.residual_rms_px,
+                    p(&g.scale_px_per_mm, "px/mm", 4),
+                );
+            }
+            None => {
+                out += &format!(
+                    "# lens: k1 {} (the fractional displacement at the frame's corners, about its centre);\n\
+                     #   {}; its σ is not carried into the estimates' uncertainty\n",
+                    p(&self.lens_k1, "", 5),
+                    if self.lens_kept {
+                        "beyond 3σ, so written into both views"
+                    } else {
+                        "within 3σ of none, so the maps were fitted again without a lens"
+                    },
+                );
+            }
+        }
         out += &format!(
             "# px_per_mm_uncertainty_percent and turn_uncertainty_deg (about world x, y, z) are\n\
              #   the σ above; the analysis carries them into every estimate's uncertainty. The\n\

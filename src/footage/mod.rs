@@ -99,6 +99,12 @@ pub trait FrameFile: Send {
 /// Opens footage by its content: a directory of numbered images, a `%d` pattern, a Photron
 /// header (.cih/.cihx) or the .mraw beside one, a CINE, an FMF, a TIFF stack, or one image of
 /// a numbered sequence. `frame_rate_hz` is used where the file has no rate of its own.
+/// One greyscale image file (PNG, BMP, or a one-page TIFF) into `buf`, little-endian: (width,
+/// height, bytes per pixel). That file alone, even where its name is numbered like a sequence's.
+pub fn read_image(path: &Path, buf: &mut Vec<u8>) -> Result<(u32, u32, usize), FootageError> {
+    sequence::decode(path, buf)
+}
+
 pub fn open(path: &Path, frame_rate_hz: Option<f64>) -> Result<Box<dyn FrameFile>, FootageError> {
     if path.is_dir() || sequence::is_pattern(path) {
         return Ok(Box::new(sequence::Sequence::open(path, frame_rate_hz)?));

@@ -236,7 +236,7 @@ impl FrameFile for Sequence {
 }
 
 /// Decodes one greyscale image into `buf` (little-endian): (width, height, bytes per pixel).
-fn decode(path: &Path, buf: &mut Vec<u8>) -> Result<(u32, u32, usize), FootageError> {
+pub(super) fn decode(path: &Path, buf: &mut Vec<u8>) -> Result<(u32, u32, usize), FootageError> {
     let mut head = [0u8; 8];
     let mut f = File::open(path).map_err(|e| err(path, format!("cannot open: {e}")))?;
     let n =
