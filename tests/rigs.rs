@@ -549,4 +549,22 @@ fn a_lens_in_the_config_takes_out_the_bias_it_leaves_and_calibrate_finds_it() {
         "{}",
         common::stderr(&out)
     );
+    // A grid that is not an image is refused, naming the file.
+    let out = common::impactcam(
+        t.path(),
+        &[
+            "calibrate",
+            session.to_str().unwrap(),
+            "--grid",
+            "cal.toml",
+            "--grid-pitch-mm",
+            "4",
+        ],
+    );
+    assert!(!out.status.success());
+    let err = common::stderr(&out);
+    assert!(
+        err.contains("cal.toml") && err.contains("not a PNG, TIFF or BMP"),
+        "{err}"
+    );
 }

@@ -8,7 +8,9 @@
 use super::bundle::LensFrame;
 use super::Fitted;
 use crate::analysis::image::GreyImage;
+use crate::analysis::AnalysisError;
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
+use std::path::Path;
 
 /// What the grid gave.
 #[derive(Clone, Copy, Debug)]
@@ -24,6 +26,31 @@ pub struct GridFit {
 
 /// One dot: its image centre, px.
 type Dot = [f64; 2];
+
+/// The grid's image: that one file (a TIFF, PNG or BMP, even if its name is numbered like a
+/// sequence's frame), or a session's (or a directory of frames') first frame.
+pub(super) fn read_image(path: &Path, frame_rate_hz: f64) -> Result<GreyImage, AnalysisError> {
+    let mut img = GreyImage::new();
+    if path.is_dir() {
+        let mut src = crate::analysis::source::open(path, Some(frame_rate_hz))?;
+        if src.is_empty() {
+            return Err(AnalysisError::Input {
+                source_name: path.display().to_string(),
+                message: "no frame in it: expected an image of the dot grid".into(),
+            });
+        }
+        src.read(0, &mut img)?;
+    } else {
+        let mut raw = Vec::new();
+        let (w, h, bpp) =
+            crate::footage::read_image(path, &mut raw).map_err(|e| AnalysisError::Input {
+                source_name: e.path.display().to_string(),
+                message: e.message,
+            })?;
+        img.load(&raw, w as usize, h as usize, bpp);
+    }
+    Ok(img)
+}
 
 /// The dark components of `region` that do not touch its border, each centred by the weight
 /// (light − grey) over its pixels and the ring around them.

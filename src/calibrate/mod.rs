@@ -161,38 +161,19 @@ pub fn calibrate_paths(
             .map(|s| s.as_mut() as &mut dyn FrameSource)
             .collect();
         let grid_image = match grid {
-            Some((path, pitch_mm)) => {
-                let mut img = analysis::image::GreyImage::new();
-                if path.is_dir() {
-                    // A session (or a directory of frames): its first frame.
-                    let mut src = analysis::source::open(path, Some(cfg.camera.frame_rate_hz))?;
-                    if src.is_empty() {
-                        return Err(AnalysisError::Input {
-                            source_name: path.display().to_string(),
-                            message: "no frame in it: expected an image of the dot grid".into(),
-                        }
-                        .into());
-                    }
-                    src.read(0, &mut img)?;
-                } else {
-                    // That one file, even if its name is numbered like a sequence's frame.
-                    let mut raw = Vec::new();
-                    let (w, h, bpp) = crate::footage::read_image(path, &mut raw).map_err(|e| {
-                        AnalysisError::Input {
-                            source_name: e.path.display().to_string(),
-                            message: e.message,
-                        }
-                    })?;
-                    img.load(&raw, w as usize, h as usize, bpp);
-                }
-                Some((img, pitch_mm))
-            }
+            Some((path, pitch_mm)) => Some((
+                grid::read_image(path, cfg.camera.frame_rate_hz)?,
+                pitch_mm,
+                path.display().to_string(),
+            )),
             None => None,
         };
         calibrate(
             &mut refs,
             &cfg,
-            grid_image.as_ref().map(|(img, p)| (img, *p)),
+            grid_image
+                .as_ref()
+                .map(|(img, p, name)| (img, *p, name.as_str())),
         )
         .map_err(|e| AnalysisError::Input {
             source_name: first.display().to_string(),
@@ -241,7 +222,7 @@ fn degrees_known(d: f64) -> f64 {
 pub fn calibrate(
     sources: &mut [&mut dyn FrameSource],
     cfg: &Config,
-    grid: Option<(&analysis::image::GreyImage, f64)>,
+    grid: Option<(&analysis::image::GreyImage, f64, &str)>,
 ) -> Result<Calibrated, CalibrateError> {
     let (src, others) = sources.split_first_mut().ok_or(CalibrateError::Data {
         source_name: "calibrate".into(),
@@ -463,16 +444,16 @@ pub fn calibrate(
     let frame = LensFrame::of_frame(width, height);
     // A dot grid's lens, where one is given, is held; the flights then fit the rest.
     let grid_fit = match grid {
-        Some((img, pitch_mm)) => {
+        Some((img, pitch_mm, grid_name)) => {
             if (img.width, img.height) != (width as usize, height as usize) {
                 return Err(data(format!(
-                    "the dot grid's image is {}×{} px, the recording's frames {width}×{height}: they must come from the same camera",
+                    "the dot grid {grid_name} is {}×{} px, the recording's frames {width}×{height}: they must come from the same camera",
                     img.width, img.height
                 )));
             }
             Some(
                 grid::fit_grid(img, direct_cfg.region, pitch_mm, frame)
-                    .map_err(|e| data(format!("the dot grid: {e}")))?,
+                    .map_err(|e| data(format!("the dot grid {grid_name}: {e}")))?,
             )
         }
         None => None,
