@@ -476,21 +476,15 @@ fn a_lens_in_the_config_takes_out_the_bias_it_leaves_and_calibrate_finds_it() {
     // calibrate takes k1 from the grid, to within 0.002, and its maps give e within 0.02 and 5σ.
     // (On this rig e's error comes from the scale, roll and squareness, not the lens: over six
     // recordings it reached 0.0115 at 1.8σ with the grid's k1, 0.0065 with the flights' own.)
-    let direct = hw_sim::ViewSpec {
-        name: "direct".into(),
-        region: [0, 0, 240, 96],
-        px_per_mm: 2.1576,
-        origin_px: [119.5, 44.0],
-        u_axis: [1.0, 0.0, 0.0],
-        v_axis: [0.0, -1.0, 0.0],
-        facing: [0.0, 0.0, 1.0],
-        distance_mm: None,
-        lens: Some(hw_sim::Lens {
-            k1: -0.03,
-            centre_px: [119.5, 95.5],
-            radius_px: 0.5 * 240f64.hypot(192.0),
-        }),
-    };
+    let mut view =
+        impactcam::analysis::geometry::views(&impactcam::config::Config::default_config())
+            .remove(0);
+    view.lens = Some(impactcam::analysis::lens::Lens {
+        k1: -0.03,
+        centre_px: [119.5, 95.5],
+        radius_px: 0.5 * 240f64.hypot(192.0),
+    });
+    let direct = impactcam::analysis::geometry::sim_view(&view);
     let grid = hw_sim::render_grid(
         &direct,
         240,
@@ -536,6 +530,24 @@ fn a_lens_in_the_config_takes_out_the_bias_it_leaves_and_calibrate_finds_it() {
     );
     let calibrated = analyze_with(t.path(), &session, "cal_grid.toml", "cal_grid");
     check(&calibrated, &truth, "e", 0.02, "lens from the grid");
+    // The grid's scale is checked against the flights': told a pitch 10 % too large, calibrate
+    // still writes the maps but says that the two disagree. (With the right pitch they
+    // disagree too on most recordings: the flights fitted with the grid's k1 held give a
+    // scale 1–6 % low, a cause not yet found; docs/accuracy.md.)
+    let out = common::impactcam(
+        t.path(),
+        &[
+            "calibrate",
+            session.to_str().unwrap(),
+            "--grid",
+            "grid.tiff",
+            "--grid-pitch-mm",
+            "4.4",
+        ],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("they DISAGREE"), "{text}");
     // A grid given without its pitch is refused by name.
     let out = common::impactcam(
         t.path(),

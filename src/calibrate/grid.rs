@@ -399,21 +399,11 @@ mod tests {
     /// The direct view of the thesis rig (2.1576 px/mm), rolled by 1°, optionally seen through a
     /// pinhole 300 mm away pitched by 2°, and through a lens of `k1`.
     fn view(k1: f64, perspective: bool) -> hw_sim::ViewSpec {
-        let mut v = hw_sim::ViewSpec {
-            name: "direct".into(),
-            region: [0, 0, 240, 96],
-            px_per_mm: 2.1576,
-            origin_px: [119.5, 44.0],
-            u_axis: [1.0, 0.0, 0.0],
-            v_axis: [0.0, -1.0, 0.0],
-            facing: [0.0, 0.0, 1.0],
-            distance_mm: perspective.then_some(300.0),
-            lens: (k1 != 0.0).then_some(hw_sim::Lens {
-                k1,
-                centre_px: [119.5, 95.5],
-                radius_px: 0.5 * 240f64.hypot(192.0),
-            }),
-        };
+        let mut direct =
+            crate::analysis::geometry::views(&crate::config::Config::default_config()).remove(0);
+        direct.lens = (k1 != 0.0).then(|| LensFrame::of_frame(240, 192).lens(k1));
+        let mut v = crate::analysis::geometry::sim_view(&direct);
+        v.distance_mm = perspective.then_some(300.0);
         if perspective {
             v.turn_about_x(2f64.to_radians());
         }
