@@ -3,7 +3,7 @@
 //! too large for one sphere (two silhouettes merged), because neither gives a true centre.
 
 use super::geometry::View;
-use super::image::GreyImage;
+use super::image::{four_neighbours, GreyImage};
 
 #[derive(Clone, Debug)]
 pub struct Blob {
@@ -128,24 +128,12 @@ pub fn find_blobs(
                 if cu == 0 || cv == 0 || cu + 1 == rw || cv + 1 == rh {
                     clipped = true;
                 }
-                let mut visit = |nu: usize, nv: usize| {
+                for (nu, nv) in four_neighbours(cu, cv, rw, rh) {
                     let k = nv * rw + nu;
                     if !seen[k] && level(x0 + nu, y0 + nv) >= threshold {
                         seen[k] = true;
                         stack.push((nu, nv));
                     }
-                };
-                if cu > 0 {
-                    visit(cu - 1, cv);
-                }
-                if cu + 1 < rw {
-                    visit(cu + 1, cv);
-                }
-                if cv > 0 {
-                    visit(cu, cv - 1);
-                }
-                if cv + 1 < rh {
-                    visit(cu, cv + 1);
                 }
             }
             // Noise specks and marker fragments are far smaller than a sphere.

@@ -4,6 +4,24 @@
 
 use std::sync::Arc;
 
+/// The 4-connected neighbours of pixel (u, v) in a `width` × `height` grid, always in the order
+/// left, right, above, below: the step of every flood fill (blobs, marker dots, grid dots).
+pub fn four_neighbours(
+    u: usize,
+    v: usize,
+    width: usize,
+    height: usize,
+) -> impl Iterator<Item = (usize, usize)> {
+    [
+        (u > 0).then(|| (u - 1, v)),
+        (u + 1 < width).then_some((u + 1, v)),
+        (v > 0).then(|| (u, v - 1)),
+        (v + 1 < height).then_some((u, v + 1)),
+    ]
+    .into_iter()
+    .flatten()
+}
+
 pub struct GreyImage {
     pub width: usize,
     pub height: usize,

@@ -6,7 +6,7 @@
 
 use super::circle::CircleFit;
 use super::geometry::{View, V3};
-use super::image::GreyImage;
+use super::image::{four_neighbours, GreyImage};
 
 /// One marker seen in one view of one frame.
 #[derive(Clone, Copy, Debug)]
@@ -107,18 +107,7 @@ pub fn find(
             sw += d;
             su += d * (u0 + x) as f64;
             sv += d * (v0 + y) as f64;
-            if x > 0 {
-                stack.push(k - 1);
-            }
-            if x + 1 < w {
-                stack.push(k + 1);
-            }
-            if y > 0 {
-                stack.push(k - w);
-            }
-            if y + 1 < h {
-                stack.push(k + w);
-            }
+            stack.extend(four_neighbours(x, y, w, h).map(|(nu, nv)| nv * w + nu));
         }
         // A marker blob larger than a quarter of the disc is not a marker (shading model failed).
         if sw <= 0.0 || members.len() as f64 > 0.25 * std::f64::consts::PI * r * r {

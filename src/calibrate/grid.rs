@@ -7,7 +7,7 @@
 
 use super::bundle::LensFrame;
 use super::Fitted;
-use crate::analysis::image::GreyImage;
+use crate::analysis::image::{four_neighbours, GreyImage};
 use crate::analysis::AnalysisError;
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 use std::path::Path;
@@ -91,24 +91,12 @@ fn find_dots(img: &GreyImage, region: [u32; 4]) -> Result<Vec<Dot>, String> {
             members.push(k);
             let (u, v) = (k % rw, k / rw);
             touches |= u == 0 || v == 0 || u + 1 == rw || v + 1 == rh;
-            let mut push = |nu: usize, nv: usize| {
+            for (nu, nv) in four_neighbours(u, v, rw, rh) {
                 let n = nv * rw + nu;
                 if label[n] == usize::MAX && is_dark(nu, nv) {
                     label[n] = id;
                     stack.push(n);
                 }
-            };
-            if u > 0 {
-                push(u - 1, v);
-            }
-            if u + 1 < rw {
-                push(u + 1, v);
-            }
-            if v > 0 {
-                push(u, v - 1);
-            }
-            if v + 1 < rh {
-                push(u, v + 1);
             }
         }
         if touches || members.len() < 3 || members.len() > max_area {

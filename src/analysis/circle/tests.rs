@@ -586,40 +586,59 @@ fn a_disc_cut_by_the_view_border_is_fitted_on_its_grey_levels() {
     );
 }
 
-/// A lone sphere lit from 30° to one side (Lambertian, ambient floor 0.4), noise σ = 2: the
-/// centre from `refine` is unbiased to 0.01 px along the light and across it. A shading model
-/// symmetric round the disc put such centres 0.1–0.4 px towards the lit side.
-#[test]
-fn a_lone_sphere_lit_from_the_side_is_not_biased() {
-    for azimuth_deg in [0.0, 120.0, 250.0] {
-        let (view, r_px, mut cfg) = dotless_direct_view(64, 64, [31.3, 31.6]);
-        cfg.look = Some(hw_sim::Look {
-            views: vec![hw_sim::ViewLook {
-                light_off_axis_deg: 30.0,
-                light_azimuth_deg: azimuth_deg,
-                ..Default::default()
-            }],
-            ambient: 0.4,
-            ..Default::default()
-        });
-        let far = V3::new(100.0, 100.0, 0.0);
-        let (mut sum, n) = ([0.0f64; 2], 48);
-        for k in 0..n {
-            // Sub-pixel phases spread over a pixel, so pixel locking averages out.
+/// A lone sphere under `look` (its first view's), measured by `refine` at 48 sub-pixel phases
+/// spread over a pixel (so that pixel locking averages out), noise σ = 2, the k-th rendered
+/// with seed `seed + k`: each phase's centre error and the σ the fit claims, px.
+fn lone_sphere_fits(look: hw_sim::Look, seed: u64) -> Vec<([f64; 2], [f64; 2])> {
+    let (view, r_px, mut cfg) = dotless_direct_view(64, 64, [31.3, 31.6]);
+    cfg.look = Some(look);
+    let far = V3::new(100.0, 100.0, 0.0);
+    (0..48u64)
+        .map(|k| {
             let kf = k as f64;
             let c = V3::new(
                 (kf * 0.618).fract() / view.px_per_mm,
                 (kf * 0.382).fract() / view.px_per_mm,
                 0.0,
             );
-            let (img, truth) = render_pair(&view, 64, 64, [c, far], &cfg, 700 + k);
+            let (img, truth) = render_pair(&view, 64, 64, [c, far], &cfg, seed + k);
             let rough = [truth[0][0] + 0.4, truth[0][1] - 0.3];
             let f = refine(&img, &view, rough, r_px, cfg.background_grey, None, &[])
                 .expect("a lone sphere is measured");
-            sum[0] += f.centre[0] - truth[0][0];
-            sum[1] += f.centre[1] - truth[0][1];
-        }
-        let bias = sum.map(|s| s / n as f64);
+            (
+                [f.centre[0] - truth[0][0], f.centre[1] - truth[0][1]],
+                f.centre_sigma,
+            )
+        })
+        .collect()
+}
+
+/// The mean of the errors `lone_sphere_fits` gives, px.
+fn mean_error(fits: &[([f64; 2], [f64; 2])]) -> [f64; 2] {
+    let n = fits.len() as f64;
+    [0, 1].map(|i| fits.iter().map(|(e, _)| e[i]).sum::<f64>() / n)
+}
+
+/// A look lit from `off_axis_deg` at `azimuth_deg` in the image, otherwise hw-sim's.
+fn lit_from(off_axis_deg: f64, azimuth_deg: f64, ambient: f64) -> hw_sim::Look {
+    hw_sim::Look {
+        views: vec![hw_sim::ViewLook {
+            light_off_axis_deg: off_axis_deg,
+            light_azimuth_deg: azimuth_deg,
+            ..Default::default()
+        }],
+        ambient,
+        ..Default::default()
+    }
+}
+
+/// A lone sphere lit from 30° to one side (Lambertian, ambient floor 0.4), noise σ = 2: the
+/// centre from `refine` is unbiased to 0.01 px along the light and across it. A shading model
+/// symmetric round the disc put such centres 0.1–0.4 px towards the lit side.
+#[test]
+fn a_lone_sphere_lit_from_the_side_is_not_biased() {
+    for azimuth_deg in [0.0, 120.0, 250.0] {
+        let bias = mean_error(&lone_sphere_fits(lit_from(30.0, azimuth_deg, 0.4), 700));
         assert!(
             bias[0].abs() < 0.01 && bias[1].abs() < 0.01,
             "lit from azimuth {azimuth_deg}°: mean error ({:+.4}, {:+.4}) px",
@@ -667,42 +686,16 @@ fn the_fits_work_is_counted_and_the_same_each_time() {
 #[test]
 fn a_defocused_sphere_is_measured_as_well_as_its_fit_claims() {
     let lone = |off_axis_deg: f64, azimuth_deg: f64| {
-        let (view, r_px, mut cfg) = dotless_direct_view(64, 64, [31.3, 31.6]);
-        cfg.look = Some(hw_sim::Look {
-            views: vec![hw_sim::ViewLook {
-                light_off_axis_deg: off_axis_deg,
-                light_azimuth_deg: azimuth_deg,
-                ..Default::default()
-            }],
-            ambient: 0.3,
+        let look = hw_sim::Look {
             defocus_sigma_px: 1.1,
-            ..Default::default()
-        });
-        let far = V3::new(100.0, 100.0, 0.0);
-        let (mut sum, mut sq, mut claimed) = ([0.0f64; 2], 0.0, 0.0);
-        let n = 48;
-        for k in 0..n {
-            let kf = k as f64;
-            let c = V3::new(
-                (kf * 0.618).fract() / view.px_per_mm,
-                (kf * 0.382).fract() / view.px_per_mm,
-                0.0,
-            );
-            let (img, truth) = render_pair(&view, 64, 64, [c, far], &cfg, 900 + k);
-            let rough = [truth[0][0] + 0.4, truth[0][1] - 0.3];
-            let f = refine(&img, &view, rough, r_px, cfg.background_grey, None, &[])
-                .expect("a defocused sphere is measured");
-            let e = [f.centre[0] - truth[0][0], f.centre[1] - truth[0][1]];
-            sum = [sum[0] + e[0], sum[1] + e[1]];
-            sq += e[0] * e[0] + e[1] * e[1];
-            claimed += f.centre_sigma[0].powi(2) + f.centre_sigma[1].powi(2);
-        }
-        let nf = n as f64;
-        (
-            [sum[0] / nf, sum[1] / nf],
-            (sq / nf).sqrt(),
-            (claimed / nf).sqrt(),
-        )
+            ..lit_from(off_axis_deg, azimuth_deg, 0.3)
+        };
+        let fits = lone_sphere_fits(look, 900);
+        let n = fits.len() as f64;
+        let square = |v: [f64; 2]| v[0] * v[0] + v[1] * v[1];
+        let scatter = (fits.iter().map(|f| square(f.0)).sum::<f64>() / n).sqrt();
+        let claimed = (fits.iter().map(|f| square(f.1)).sum::<f64>() / n).sqrt();
+        (mean_error(&fits), scatter, claimed)
     };
     let (_, rms, claimed) = lone(0.0, 0.0);
     assert!(
