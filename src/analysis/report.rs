@@ -95,7 +95,8 @@ pub struct SpinCheck {
     pub dof: u32,
     /// Where `spin_post_rad_s` comes from: "markers and impulse", "impulse", or "markers".
     pub spin_post_from: String,
-    /// The factor both spins' uncertainties were inflated by (1 where the check passed).
+    /// The factor both spins' covariances were scaled by, as σ (1 where the check passed);
+    /// where it failed, the disagreement r was then added to each as r rᵀ.
     pub uncertainty_inflated_by: f64,
 }
 

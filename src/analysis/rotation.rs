@@ -95,6 +95,13 @@ fn ls_omega(pairs: &[&PairRotation]) -> Option<V3> {
     (den > 0.0).then(|| num / den)
 }
 
+/// The fewest frames a spin is fitted on. Fewer leave the frame-clustered covariance too few
+/// degrees of freedom to be believed: on independent frame errors, four or five frames put
+/// 2–5 % of their errors beyond 5σ (test `a_fit_on_few_frames_claims_no_more_than_they_show`).
+/// A phase with fewer frames takes its spin from the other phase and the contact impulse
+/// (`impulse.rs`), whose σ is honest.
+pub const MIN_SPIN_FRAMES: usize = 6;
+
 /// Constant ω from all pairs (rotvec ≈ ω·Δt), with a covariance clustered by frame (the
 /// infinitesimal jackknife, or sandwich, with frames as the units): pairs that share a frame
 /// share its errors, so a plain LS covariance would be too small.
@@ -124,11 +131,18 @@ pub fn fit_spin(pairs: &[PairRotation]) -> Option<SpinFit> {
         }
     }
     let n = influence.len() as f64;
-    if n < 3.0 {
+    // The influences of n frames sum to zero, so their covariance has rank ≤ n − 1 and n − 1
+    // degrees of freedom: the error over the estimated σ follows Student's t with ν = n − 1 or
+    // worse, whose variance ν/(ν − 2) exists only from four frames on and whose tails are thin
+    // only from about six (see MIN_SPIN_FRAMES). Three frames claimed one direction known
+    // exactly, and the impulse's combination trusted a wrong post-impact spin along it
+    // (docs/accuracy.md, session 22).
+    if influence.len() < MIN_SPIN_FRAMES {
         return None;
     }
-    // n/(n−1), the usual small-sample factor of a clustered covariance.
-    let scale = (n / (n - 1.0)).sqrt();
+    // n/(n−1), the usual small-sample factor of a clustered covariance, times the t variance
+    // (n−1)/(n−3), so that σ is the error's standard deviation when frames are few.
+    let scale = (n / (n - 3.0)).sqrt();
     let frame_influence: Vec<(usize, V3)> =
         influence.into_iter().map(|(f, u)| (f, u * scale)).collect();
     let cov = frame_influence
@@ -241,6 +255,45 @@ mod tests {
         pairs
     }
 
+    /// Three frames' influences sum to zero, so their covariance would claim one direction
+    /// known exactly; with four or five, independent frame errors still land beyond 5σ in
+    /// 2–5 % of fits (Student's t with few degrees of freedom, and the pairs' leverage): no fit
+    /// below six frames. From six on, the tails must stay thin: ≤ 5 % beyond 3σ and ≤ 1.5 %
+    /// beyond 5σ (the clustered covariance's n/(n−1) alone gave 6.3 % and 1.6 % at six).
+    #[test]
+    fn a_fit_on_few_frames_claims_no_more_than_they_show() {
+        let omega = V3::new(5.0, -20.0, 150.0);
+        for frames in [3, 5] {
+            let pairs = noisy_pairs(
+                frames,
+                omega,
+                &|k| V3::new(0.01, 0.0, -0.01) * k as f64,
+                &mut || V3::zeros(),
+            );
+            assert!(
+                pairs.len() >= 2 && fit_spin(&pairs).is_none(),
+                "{frames} frames"
+            );
+        }
+        let mut rng = hw_sim::Rng::new(5);
+        let mut z = Vec::new();
+        for _ in 0..3000 {
+            let errs: Vec<V3> = (0..MIN_SPIN_FRAMES)
+                .map(|_| V3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * 0.01)
+                .collect();
+            let pairs = noisy_pairs(MIN_SPIN_FRAMES, omega, &|k| errs[k], &mut || V3::zeros());
+            let fit = fit_spin(&pairs).expect("enough frames");
+            z.extend((0..3).map(|i| ((fit.omega[i] - omega[i]) / fit.cov[(i, i)].sqrt()).abs()));
+        }
+        let beyond = |k: f64| z.iter().filter(|x| **x > k).count() as f64 / z.len() as f64;
+        assert!(
+            beyond(3.0) <= 0.05 && beyond(5.0) <= 0.015,
+            "beyond 3σ {:.3}, beyond 5σ {:.4}",
+            beyond(3.0),
+            beyond(5.0)
+        );
+    }
+
     /// Each frame's influence is how ω moves when that frame weighs a little more (the
     /// infinitesimal jackknife), not how it moves when the frame is dropped.
     #[test]
@@ -268,7 +321,7 @@ mod tests {
                 den += w * p.dt_s * p.dt_s;
             }
             let derivative = (num / den - fit.omega) / h;
-            let expected = derivative * (n / (n - 1.0)).sqrt();
+            let expected = derivative * (n / (n - 3.0)).sqrt();
             assert!(
                 (influence - expected).norm() < 1e-4 * expected.norm().max(1e-3),
                 "frame {f}: {influence:?} against {expected:?}"
