@@ -287,8 +287,8 @@ mod tests {
     /// A post-impact fit on few frames whose covariance is long and thin (correlations of 0.93
     /// to 0.995, as a fit on three frames with two markers had in session 22) and whose error
     /// lies across it: after the failed check, every axis of both spins must cover its error
-    /// within 2σ. Scaling the covariances alone left the combined spin after 3.6σ off in x
-    /// (with a value outside both estimates it combined).
+    /// within 2σ. Scaling the covariances alone leaves the combined spin after 8.6σ off in x
+    /// here (on the recording it came out further off than either estimate it combined).
     #[test]
     fn a_spin_wrong_where_its_fit_claims_precision_is_covered_after_the_check_fails() {
         // Figures like those of that recording (sphere a of the quick sweep at 60°), its error a
