@@ -236,17 +236,42 @@ pub fn reconcile(
 mod tests {
     use super::*;
 
-    fn fit(omega: V3, sigma: f64, frame: usize) -> SpinFit {
+    /// The sum of a fit's influences' outer products: its covariance.
+    fn influence_sum(influence: &[(usize, V3)]) -> Matrix3<f64> {
+        influence
+            .iter()
+            .fold(Matrix3::zeros(), |c, (_, d)| c + d * d.transpose())
+    }
+
+    /// A fit whose covariance is that of its influences, as `rotation::fit_spin` makes them.
+    fn from_influences(omega: V3, pairs: usize, frame_influence: Vec<(usize, V3)>) -> SpinFit {
         SpinFit {
             omega,
-            cov: Matrix3::identity() * sigma * sigma,
-            pairs: 5,
-            frame_influence: vec![
-                (frame, V3::new(sigma, 0.0, 0.0)),
-                (frame + 1, V3::new(0.0, sigma, 0.0)),
-                (frame + 2, V3::new(0.0, 0.0, sigma)),
-            ],
+            cov: influence_sum(&frame_influence),
+            pairs,
+            frame_influence,
         }
+    }
+
+    /// Independent axes of σ `sigma`, one influence each, on frames `frame`…`frame + 2`.
+    fn fit_axes(omega: V3, sigma: V3, frame: usize) -> SpinFit {
+        let influence = (0..3)
+            .map(|i| {
+                let mut d = V3::zeros();
+                d[i] = sigma[i];
+                (frame + i, d)
+            })
+            .collect();
+        from_influences(omega, 5, influence)
+    }
+
+    fn fit(omega: V3, sigma: f64, frame: usize) -> SpinFit {
+        fit_axes(omega, V3::repeat(sigma), frame)
+    }
+
+    /// A fit whose covariance is long along `long` and thin across it (`across`).
+    fn thin_fit(omega: V3, long: V3, across: [V3; 2]) -> SpinFit {
+        from_influences(omega, 3, vec![(40, long), (41, across[0]), (42, across[1])])
     }
 
     /// A rolling-free glancing impulse: n = x, Δv along y spins the sphere about z.
@@ -305,32 +330,20 @@ mod tests {
             cov: Matrix3::from_diagonal(&V3::new(1.83, 0.89, 0.51).map(|s| s * s)),
         };
         let truth_post = truth_pre + V3::new(1.0, -1.33, 22.52);
-        let pre = SpinFit {
-            omega: truth_pre + V3::new(0.19, -0.16, -1.51),
-            cov: Matrix3::from_diagonal(&V3::new(0.39, 0.66, 1.44).map(|s| s * s)),
-            pairs: 60,
-            frame_influence: vec![
-                (10, V3::new(0.39, 0.0, 0.0)),
-                (11, V3::new(0.0, 0.66, 0.0)),
-                (12, V3::new(0.0, 0.0, 1.44)),
-            ],
-        };
+        let pre = fit_axes(
+            truth_pre + V3::new(0.19, -0.16, -1.51),
+            V3::new(0.39, 0.66, 1.44),
+            10,
+        );
         // The long axis of the post fit's covariance, with a little width across it.
-        let long = V3::new(-0.18, 0.117, 1.14);
-        let across = [V3::new(0.02, 0.01, 0.0), V3::new(0.0, 0.01, 0.001)];
-        let post = SpinFit {
-            omega: truth_post + V3::new(2.6, -1.2, 6.2),
-            cov: long * long.transpose()
-                + across
-                    .iter()
-                    .map(|a| a * a.transpose())
-                    .sum::<Matrix3<f64>>(),
-            pairs: 3,
-            frame_influence: vec![(40, long), (41, across[0]), (42, across[1])],
-        };
+        let post = thin_fit(
+            truth_post + V3::new(2.6, -1.2, 6.2),
+            V3::new(-0.18, 0.117, 1.14),
+            [V3::new(0.02, 0.01, 0.0), V3::new(0.0, 0.01, 0.001)],
+        );
         let (pre2, post2, check, warn) = reconcile(0, Some(&pre), Some(&post), &imp);
         assert!(
-            check.chi2.is_some_and(|x| x > 14.16) && warn.is_some(),
+            check.chi2.is_some_and(|x| x > CHI2_3SIGMA_3DOF) && warn.is_some(),
             "χ² {:?}",
             check.chi2
         );
@@ -340,12 +353,8 @@ mod tests {
                 let z = (got.omega[i] - truth[i]) / got.cov[(i, i)].sqrt();
                 assert!(z.abs() <= 2.0, "{what}, axis {i}: {z:.1}σ");
             }
-            let sum = got
-                .frame_influence
-                .iter()
-                .fold(Matrix3::zeros(), |c, (_, d)| c + d * d.transpose());
             assert!(
-                (sum - got.cov).norm() < 1e-9 * got.cov.norm(),
+                (influence_sum(&got.frame_influence) - got.cov).norm() < 1e-9 * got.cov.norm(),
                 "influences carry the covariance"
             );
         }
@@ -365,21 +374,14 @@ mod tests {
             cov: Matrix3::from_diagonal(&V3::new(15.0, 3.0, 6.0).map(|s| s * s)),
         };
         let pre = fit(truth_pre + V3::new(-0.6, 1.8, 1.2), 2.0, 10);
-        let long = V3::new(3.9, 4.4, 4.3);
-        let across = [V3::new(0.6, -0.5, 0.0), V3::new(0.0, 0.4, -0.5)];
-        let post = SpinFit {
-            omega: truth_post + V3::new(10.2, -0.5, 4.6),
-            cov: long * long.transpose()
-                + across
-                    .iter()
-                    .map(|a| a * a.transpose())
-                    .sum::<Matrix3<f64>>(),
-            pairs: 12,
-            frame_influence: vec![(40, long), (41, across[0]), (42, across[1])],
-        };
+        let post = thin_fit(
+            truth_post + V3::new(10.2, -0.5, 4.6),
+            V3::new(3.9, 4.4, 4.3),
+            [V3::new(0.6, -0.5, 0.0), V3::new(0.0, 0.4, -0.5)],
+        );
         let (_, post2, check, warn) = reconcile(0, Some(&pre), Some(&post), &imp);
         assert!(
-            check.chi2.is_some_and(|x| x < 14.16) && warn.is_none(),
+            check.chi2.is_some_and(|x| x < CHI2_3SIGMA_3DOF) && warn.is_none(),
             "the check passes: χ² {:?}",
             check.chi2
         );
