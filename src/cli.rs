@@ -294,9 +294,19 @@ pub(crate) enum BenchWhat {
         /// cluttered, defocus, paint, mixed.
         #[arg(long, default_value = "default")]
         looks: String,
-        /// Where sessions are recorded while they are analysed (removed afterwards).
+        /// Where sessions are recorded while they are analysed (removed afterwards, unless
+        /// `--keep`).
         #[arg(long, default_value = ".")]
         dir: PathBuf,
+        /// Keep the recorded sessions in `--dir`, so that another build can be measured on
+        /// the same frames with `--sessions`.
+        #[arg(long)]
+        keep: bool,
+        /// Record nothing: analyse these sessions, recorded before with `--keep` (or
+        /// directories of them), each with its own config and `truth.json`. Two builds then
+        /// differ only by what they do, not by which experiments hw-sim filmed.
+        #[arg(long, num_args = 1.., conflicts_with_all = ["quick", "repeat", "looks", "keep"])]
+        sessions: Vec<PathBuf>,
     },
 }
 

@@ -421,7 +421,17 @@ fn real_main(cli: Cli) -> Result<i32> {
                 repeat,
                 looks,
                 dir,
+                keep,
+                sessions,
             } => {
+                if !sessions.is_empty() {
+                    let found = impactcam::batch::sessions(&sessions)?;
+                    print!(
+                        "{}",
+                        impactcam::bench::accuracy::accuracy_of_sessions(&found)
+                    );
+                    return Ok(0);
+                }
                 if repeat == 0 {
                     bail!("--repeat: 0 runs nothing, expected at least 1");
                 }
@@ -431,10 +441,21 @@ fn real_main(cli: Cli) -> Result<i32> {
                         anyhow::anyhow!("--looks: {}", e.trim_start_matches("sim.look_family: "))
                     })?;
                 }
-                let tmp = dir.join(format!(".impactcam-accuracy-{}", std::process::id()));
-                let text =
-                    impactcam::bench::accuracy::accuracy(quick, repeat, looks.as_deref(), &tmp);
-                let _ = std::fs::remove_dir_all(&tmp);
+                let tmp = if keep {
+                    dir.clone()
+                } else {
+                    dir.join(format!(".impactcam-accuracy-{}", std::process::id()))
+                };
+                let text = impactcam::bench::accuracy::accuracy(
+                    quick,
+                    repeat,
+                    looks.as_deref(),
+                    &tmp,
+                    keep,
+                );
+                if !keep {
+                    let _ = std::fs::remove_dir_all(&tmp);
+                }
                 print!("{text}");
                 Ok(0)
             }

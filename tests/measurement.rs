@@ -12,7 +12,7 @@ fn quick_sweep_meets_the_accuracy_goals_and_beats_the_thesis() {
     let results: Vec<_> = accuracy::sweep(true)
         .into_iter()
         .map(|c| {
-            let r = accuracy::run_case(&c, tmp.path());
+            let r = accuracy::run_case(&c, tmp.path(), true);
             (c, r)
         })
         .collect();
@@ -84,6 +84,32 @@ fn quick_sweep_meets_the_accuracy_goals_and_beats_the_thesis() {
     }
     let thesis_e = all(&|r| r.thesis_e.into_iter().collect());
     assert!(stats(&thesis_e).unwrap().0 > stats(&e).unwrap().0);
+
+    // `bench accuracy --sessions`: a kept recording analysed again gives the table it gave when
+    // it was recorded (one of the four, to keep the suite short), all but the time it took.
+    let kept = impactcam::batch::sessions(&[tmp.path().to_path_buf()]).unwrap();
+    assert_eq!(kept.len(), 4, "--keep keeps every recording");
+    let seed_of = |dir: &Path| {
+        impactcam::session::SessionReader::open(dir)
+            .ok()
+            .map(|r| r.config().sim.seed)
+    };
+    let first = &results[0].0;
+    let again = kept
+        .iter()
+        .find(|d| seed_of(d) == Some(first.seed))
+        .expect("the first case's recording");
+    let untimed = |t: String| {
+        t.lines()
+            .filter(|l| !l.starts_with("analysis time"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let recorded = [(first.clone(), results.into_iter().next().unwrap().1)];
+    assert_eq!(
+        untimed(accuracy::accuracy_of_sessions(std::slice::from_ref(again))),
+        untimed(accuracy::table(&recorded))
+    );
 }
 
 fn run(dir: &Path, toml: &str, extra: &[&str]) -> std::process::Output {

@@ -183,7 +183,10 @@ fn angle_err(rotvec: V3, truth: V3) -> f64 {
 
 const PHASES: [(&str, &str); 4] = [("a", "pre"), ("b", "pre"), ("a", "post"), ("b", "post")];
 
-pub fn run_case(c: &Case, dir: &Path) -> CaseResult {
+/// Records case `c` under `dir`, analyses it and compares it with the truth; the session is
+/// removed afterwards unless `keep` (`--keep`: so that another build can analyse the same
+/// frames with `--sessions`).
+pub fn run_case(c: &Case, dir: &Path, keep: bool) -> CaseResult {
     let mut out = CaseResult {
         look_family: c.looks.clone().unwrap_or_else(|| "default".into()),
         ..CaseResult::default()
@@ -203,7 +206,9 @@ pub fn run_case(c: &Case, dir: &Path) -> CaseResult {
         }
     };
     let result = analyse_case(&cfg, &rec.session_dir, &mut out);
-    let _ = std::fs::remove_dir_all(&rec.session_dir);
+    if !keep {
+        let _ = std::fs::remove_dir_all(&rec.session_dir);
+    }
     if let Err(e) = result {
         out.failed = Some(e);
     }
@@ -480,7 +485,7 @@ pub fn repeated_sweep(quick: bool, repeat: u32) -> Vec<Case> {
 /// Runs the sweep (`repeat` times) and prints the accuracy table. `looks`: None for the
 /// default look, or a family of `hw_sim::Look::FAMILIES` or "varied" (each experiment draws
 /// its own look from its seed).
-pub fn accuracy(quick: bool, repeat: u32, looks: Option<&str>, dir: &Path) -> String {
+pub fn accuracy(quick: bool, repeat: u32, looks: Option<&str>, dir: &Path, keep: bool) -> String {
     let results: Vec<(Case, CaseResult)> = repeated_sweep(quick, repeat)
         .into_iter()
         .map(|c| Case {
@@ -488,8 +493,58 @@ pub fn accuracy(quick: bool, repeat: u32, looks: Option<&str>, dir: &Path) -> St
             ..c
         })
         .map(|c| {
-            let r = run_case(&c, dir);
+            let r = run_case(&c, dir, keep);
             (c, r)
+        })
+        .collect();
+    table(&results)
+}
+
+/// The case a recorded hw-sim session was made from, read back from its recorded config.
+fn case_of(cfg: &Config) -> Case {
+    Case {
+        tube_angle_deg: cfg.sim.tube_angle_deg,
+        impact_offset: cfg.sim.impact_offset,
+        noise_sigma_grey: cfg.sim.noise_sigma_grey,
+        width: cfg.camera.width,
+        height: cfg.camera.height,
+        seed: cfg.sim.seed,
+        looks: cfg.sim.look_family.clone(),
+    }
+}
+
+/// The accuracy table over sessions recorded before (`--keep`), each analysed with its own
+/// recorded config and compared with its `truth.json`. Why: hw-sim records in real time, so
+/// two sweeps film different experiments and their figures scatter; two builds compared on the
+/// same recordings differ only by what the builds do. A session that cannot be read is a row
+/// that failed, naming it.
+pub fn accuracy_of_sessions(sessions: &[std::path::PathBuf]) -> String {
+    let results: Vec<(Case, CaseResult)> = sessions
+        .iter()
+        .map(|dir| {
+            let mut out = CaseResult::default();
+            let cfg = match SessionReader::open(dir) {
+                Ok(r) => r.config().clone(),
+                Err(e) => {
+                    out.failed = Some(format!("{}: {e}", dir.display()));
+                    let c = Case {
+                        tube_angle_deg: f64::NAN,
+                        impact_offset: f64::NAN,
+                        noise_sigma_grey: f64::NAN,
+                        width: 0,
+                        height: 0,
+                        seed: 0,
+                        looks: None,
+                    };
+                    return (c, out);
+                }
+            };
+            let c = case_of(&cfg);
+            out.look_family = c.looks.clone().unwrap_or_else(|| "default".into());
+            if let Err(e) = analyse_case(&cfg, dir, &mut out) {
+                out.failed = Some(format!("{}: {e}", dir.display()));
+            }
+            (c, out)
         })
         .collect();
     table(&results)
