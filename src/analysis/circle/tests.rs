@@ -511,10 +511,12 @@ fn the_simulated_limb_is_not_a_staircase() {
 }
 
 /// Dots on the rim, masked where they are known to be (`DotMask`), no longer move the
-/// grey-level centre: with 8 dots on a noise-free sphere the scatter falls by a third or more,
-/// to under 0.0025 px. Masks take parts of the ring away at random, and a model of the
-/// pixel's centre only (no area) left 0.0046 px: its misfit, which depends on the edge's
-/// direction across the pixel grid, no longer cancelled round the ring.
+/// grey-level centre: with 8 dots on a noise-free sphere (hw-sim's default look) the scatter is
+/// under 0.0025 px. Masks take parts of the ring away at random, and a model of the pixel's
+/// centre only (no area) left 0.0046 px: its misfit, which depends on the edge's direction
+/// across the pixel grid, no longer cancelled round the ring. Unmasked, the fit finds the dots
+/// itself: with plain least squares in its first round the dots steered that round and the
+/// scatter was 0.0084 px; with Cauchy's loss there, 0.0031 px (bound 0.004).
 #[test]
 fn masked_rim_dots_do_not_move_the_centre() {
     let cfg = hw_sim::LabConfig {
@@ -526,11 +528,9 @@ fn masked_rim_dots_do_not_move_the_centre() {
     let plain: Vec<[f64; 2]> = errs.iter().map(|e| e.0).collect();
     let masked: Vec<[f64; 2]> = errs.iter().map(|e| e.1).collect();
     let (p, m) = (rms(&plain), rms(&masked));
-    assert!(
-        m < 0.67 * p,
-        "masked {m:.4} px, unmasked {p:.4} px per axis"
-    );
+    assert!(m <= p, "masked {m:.4} px, unmasked {p:.4} px per axis");
     assert!(m < 0.0025, "masked {m:.4} px per axis");
+    assert!(p < 0.004, "unmasked {p:.4} px per axis");
 }
 
 /// A sphere entering the view: its disc cut by the view's border 4 px from its centre (a
