@@ -700,9 +700,10 @@ where
     // One pass over the pixels at p: the sum of squared residuals (without the tie), JᵀJ and
     // Jᵀr; with `robust` = Some(c), Cauchy's loss instead, Σ c²·ln(1 + (r/c)²), and each
     // pixel's row and residual weighted by √w, w = 1/(1 + (r/c)²) at p (iteratively
-    // reweighted least squares: JᵀWJ, JᵀWr). `residuals` gets the plain residuals. A trial step is evaluated with its Jacobian, so that once accepted the next
-    // iteration need not pass over the pixels again (the same numbers, in the same order, as a
-    // separate cost pass and Jacobian pass).
+    // reweighted least squares: JᵀWJ, JᵀWr). `residuals` gets the plain residuals. A trial
+    // step is evaluated with its Jacobian, so that once accepted the next iteration need not
+    // pass over the pixels again (the same numbers, in the same order, as a separate cost pass
+    // and Jacobian pass).
     const BATCH: usize = 8;
     // JᵀJ (its upper triangle) and Jᵀr plus one batch of rows, `rows[i][k]` the i-th
     // derivative of the batch's k-th pixel.
@@ -903,10 +904,11 @@ where
         // scale from the residuals at the start, so that the dots' residuals do not steer the
         // descent. Why: with plain least squares the first round's minimum, and so which
         // pixels the rejection below dropped, moved with where the descent stopped (v03's
-        // centres 0.072 → 0.103 px RMS with a quicker descent, docs/performance.md); the
-        // dots' residuals also made Gauss–Newton misjudge the curvature and zig-zag (12 passes
-        // a fit). Measured on the same frames: v03 0.072 → 0.037 px, 38 varied-look
-        // recordings 0.0783 → 0.0741 px, 15 % fewer model evaluations.
+        // centres 0.072 → 0.103 px RMS when the descent was only made quicker,
+        // docs/performance.md); the dots' residuals also made Gauss–Newton misjudge the
+        // curvature and zig-zag (12 passes a fit). Measured on the same frames: v03 0.072 →
+        // 0.037 px, 38 varied-look recordings 0.0783 → 0.0741 px, 12 % fewer model
+        // evaluations.
         let robust = (round == 0).then(|| {
             let mut at_start = Vec::with_capacity(keep.len());
             normal(&p, &keep, false, None, &mut at_start);
