@@ -892,11 +892,17 @@ where
             .max(0.03 * contrast)
             .max(0.5)
     };
+    // How far each box round settles, px: the first, robust round only has to tell the dots
+    // from the rim, to 1e-2 px (11 % fewer model evaluations on 38 varied-look recordings,
+    // with the same centre RMS, 0.0741 px, and the independent renders' within their noise).
+    // With plain least squares there, settling that loosely had put 5 estimates beyond 5σ on
+    // the same recordings: where the dots steered the round, where it stopped mattered.
+    let settle_px = |round: usize| if round == 0 { 1e-2 } else { 1e-3 };
     // Each pixel as one box first, rejecting dots; then pixels the edge crosses in 3 × 3 parts
     // from there, which moves the centres by thousandths of a pixel.
     let mut keep = pixels.to_vec();
     for round in 0..3 {
-        // Settled to 1e-3 px only: the dots to reject are all that depend on it, and the final
+        // Settled only to `settle_px`: the dots to reject are all that depend on it, and the final
         // round's model is smooth, so it converges to its own minimum from here. (With point
         // samples of a near step and of √ at the limb, that round zig-zagged and where it
         // started showed in its result: this had to settle to 1e-7 px.)
@@ -914,7 +920,7 @@ where
             normal(&p, &keep, false, None, &mut at_start);
             CAUCHY_SCALE * robust_sigma(&at_start, &p)
         });
-        let (_, _, mut res) = descend(&mut p, &keep, false, 1e-3, robust);
+        let (_, _, mut res) = descend(&mut p, &keep, false, settle_px(round), robust);
         if round == 2 {
             break;
         }
