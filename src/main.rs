@@ -441,21 +441,13 @@ fn real_main(cli: Cli) -> Result<i32> {
                         anyhow::anyhow!("--looks: {}", e.trim_start_matches("sim.look_family: "))
                     })?;
                 }
-                let tmp = if keep {
-                    dir.clone()
-                } else {
-                    dir.join(format!(".impactcam-accuracy-{}", std::process::id()))
-                };
                 let text = impactcam::bench::accuracy::accuracy(
                     quick,
                     repeat,
                     looks.as_deref(),
-                    &tmp,
+                    &dir,
                     keep,
                 );
-                if !keep {
-                    let _ = std::fs::remove_dir_all(&tmp);
-                }
                 print!("{text}");
                 Ok(0)
             }

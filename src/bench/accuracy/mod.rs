@@ -484,8 +484,14 @@ pub fn repeated_sweep(quick: bool, repeat: u32) -> Vec<Case> {
 
 /// Runs the sweep (`repeat` times) and prints the accuracy table. `looks`: None for the
 /// default look, or a family of `hw_sim::Look::FAMILIES` or "varied" (each experiment draws
-/// its own look from its seed).
+/// its own look from its seed). Sessions are recorded in a folder of their own under `dir`,
+/// removed afterwards; with `keep`, in `dir` itself, and kept.
 pub fn accuracy(quick: bool, repeat: u32, looks: Option<&str>, dir: &Path, keep: bool) -> String {
+    let work = if keep {
+        dir.to_path_buf()
+    } else {
+        dir.join(format!(".impactcam-accuracy-{}", std::process::id()))
+    };
     let results: Vec<(Case, CaseResult)> = repeated_sweep(quick, repeat)
         .into_iter()
         .map(|c| Case {
@@ -493,10 +499,13 @@ pub fn accuracy(quick: bool, repeat: u32, looks: Option<&str>, dir: &Path, keep:
             ..c
         })
         .map(|c| {
-            let r = run_case(&c, dir, keep);
+            let r = run_case(&c, &work, keep);
             (c, r)
         })
         .collect();
+    if !keep {
+        let _ = std::fs::remove_dir_all(&work);
+    }
     table(&results)
 }
 
