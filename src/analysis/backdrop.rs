@@ -283,52 +283,7 @@ impl FrameSource for Normalised<'_> {
 mod tests {
     use super::*;
     use crate::analysis::geometry::ViewKind;
-
-    /// Frames held in memory: `frames[k]` is row-major grey levels.
-    struct Frames {
-        w: usize,
-        h: usize,
-        frames: Vec<Vec<f32>>,
-    }
-
-    impl FrameSource for Frames {
-        fn source(&self) -> Source {
-            Source {
-                kind: "test".into(),
-                name: "frames".into(),
-                frames: self.frames.len() as u64,
-                frame_rate_hz: 1000.0,
-                timestamps: "frame number".into(),
-                trigger_frame: None,
-                first_frame_number: None,
-                exposure_s: None,
-            }
-        }
-        fn len(&self) -> usize {
-            self.frames.len()
-        }
-        fn meta(&self, i: usize) -> FrameMeta {
-            FrameMeta {
-                frame_id: i as u64,
-                timestamp_ns: i as u64 * 1_000_000,
-            }
-        }
-        fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
-            img.width = self.w;
-            img.height = self.h;
-            img.data.clone_from(&self.frames[i]);
-            Ok(())
-        }
-        fn frames_dropped(&self) -> u64 {
-            0
-        }
-        fn dimensions(&self) -> (u32, u32) {
-            (self.w as u32, self.h as u32)
-        }
-        fn warnings(&self) -> Vec<String> {
-            Vec::new()
-        }
-    }
+    use crate::analysis::source::MemoryFrames as Frames;
 
     fn view(w: u32, h: u32) -> View {
         let g = crate::config::ViewGeometry::shorthand([0, 0, w, h], 2.0, [0.0, 0.0], "+x", "-y");

@@ -56,12 +56,54 @@ pub fn refine(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
 ) -> Option<CircleFit> {
+    refine_noting_backdrop(img, view, rough, radius_px, background, other, dots).map(|(f, _)| f)
+}
+
+/// `refine`, and whether a static backdrop hid part of the edge: then the edge points the fit
+/// started from are few and may belong to the part of the disc brighter than the backdrop, so
+/// a start from elsewhere (the sphere's track) is worth a try (`tracking`).
+pub fn refine_noting_backdrop(
+    img: &GreyImage,
+    view: &View,
+    rough: [f64; 2],
+    radius_px: f64,
+    background: f64,
+    other: Option<([f64; 2], f64)>,
+    dots: &[DotMask],
+) -> Option<(CircleFit, bool)> {
     let (f, hidden) = fit_edges(img, view, rough, radius_px, background, other)?;
     match profile_fit(img, view, &f, background, other, dots) {
-        Some(p) => Some(p),
+        Some(p) => Some((p, hidden)),
         None if hidden => None,
-        None => Some(f),
+        None => Some((f, false)),
     }
+}
+
+/// The grey-level fit alone, started at `centre` with the known radius: for a disc whose edge
+/// a static backdrop hid, where the sphere's own track says it is (`tracking`). The edge-point
+/// fit is left out: on the few rays the backdrop leaves it may move a good start by a pixel
+/// the wrong way, and the grey-level fit must then settle a pixel from where it began.
+pub fn profile_fit_at(
+    img: &GreyImage,
+    view: &View,
+    centre: [f64; 2],
+    radius_px: f64,
+    background: f64,
+    other: Option<([f64; 2], f64)>,
+    dots: &[DotMask],
+) -> Option<CircleFit> {
+    let start = CircleFit {
+        centre,
+        radius: radius_px,
+        centre_sigma: [f64::INFINITY; 2],
+        radius_sigma: f64::INFINITY,
+        rms_px: f64::INFINITY,
+        points_used: 0,
+        points_total: 0,
+        arc_sectors: 0,
+        grey_levels: false,
+    };
+    profile_fit(img, view, &start, background, other, dots)
 }
 
 /// Where a marker is expected on a sphere's rim in one frame, px: the grey-level fit leaves out

@@ -1,10 +1,11 @@
 //! The views checked against each other within a frame: both measure world x, so the
 //! secondary view names the primary's lone sphere, drops a primary circle that may hold both
-//! spheres, and turns the primary's labels round where they came out crossed.
+//! spheres (unless the other sphere's track has taken it beyond the primary view's border),
+//! and turns the primary's labels round where they came out crossed.
 
 use super::identity::assign_by_x;
 use super::measure::measure_blob;
-use super::{world_x, FrameCtx, Spheres, Tracker};
+use super::{world_x, FrameCtx, Spheres, Tracker, TRACK_GAP_FRAMES};
 use crate::analysis::detect::{Blob, ViewLevels};
 use crate::analysis::report::Unmeasured;
 
@@ -35,7 +36,26 @@ impl Tracker {
         // circle fitted to it sits between them. It is not a measurement of either.
         let contact_mm = 0.5 * (cx.cfg.spheres.sphere(0).0 + cx.cfg.spheres.sphere(1).0);
         if x(0, 0).is_some() != x(0, 1).is_some() {
-            if (sa - sb).abs() < contact_mm {
+            // Unless the other sphere's own track in the primary view has taken it wholly
+            // beyond the view's border: then the circle holds one sphere. Why: spheres one above
+            // the other in the direct view, the lower leaving its region, lost the upper's
+            // circles for a dozen frames because the mirror view saw both close in x. (Only
+            // beyond the border: a track extrapolated across the impact that merely put the
+            // other sphere a few radii away was wrong on an independent render, and that
+            // recording lost its result.)
+            let gap_s = TRACK_GAP_FRAMES * self.recent_s / 3.0;
+            let primary = &cx.views[0];
+            let gone = |s: usize| {
+                let r = primary.px_per_mm * cx.cfg.spheres.sphere(s).0 / 2.0;
+                self.memory[0].predict(s, cx.t, gap_s).is_some_and(|q| {
+                    [(-r, 0.0), (r, 0.0), (0.0, -r), (0.0, r)]
+                        .iter()
+                        .all(|(du, dv)| !primary.contains(q[0] + du, q[1] + dv))
+                        && !primary.contains(q[0], q[1])
+                })
+            };
+            let one_sphere = (0..2).any(|s| spheres[s][0].is_some() && gone(1 - s));
+            if (sa - sb).abs() < contact_mm && !one_sphere {
                 for s in 0..2 {
                     if spheres[s][0].take().is_some() {
                         // Nor is it where this sphere was.

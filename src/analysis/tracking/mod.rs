@@ -18,6 +18,8 @@ mod ahead;
 mod cross;
 mod identity;
 mod measure;
+#[cfg(test)]
+mod tests;
 mod walk;
 
 pub use ahead::FitMemo;
@@ -25,7 +27,7 @@ use identity::{
     assign, assign_by_continuity, assign_by_prediction, assign_by_x, extrapolate, label_split,
     ViewMemory,
 };
-use measure::{measure_blob, measure_touching, BlobFit};
+use measure::{fit_from_track, measure_blob, measure_touching, BlobFit};
 
 #[derive(Clone, Debug)]
 pub struct Measurement {
@@ -392,7 +394,29 @@ impl Tracker {
         for (s, blob) in assigned.iter().enumerate() {
             let Some(b) = blob else { continue };
             let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
-            let fit = cx.blob_fit(vi, view, b, radius[s], other, lv.background, dots);
+            let mut fit = cx.blob_fit(vi, view, b, radius[s], other, lv.background, dots);
+            if matches!(
+                fit,
+                Some(BlobFit::TooFewEdgePoints | BlobFit::Fitted(_, true))
+            ) {
+                let predicted = [0, 1].map(|k| self.memory[vi].predict(k, cx.t, self.recent_s));
+                let from_track = stages::timed(Stage::Circles, || {
+                    fit_from_track(
+                        cx.img,
+                        view,
+                        s,
+                        b,
+                        assigned[1 - s],
+                        predicted,
+                        radius,
+                        &lv,
+                        dots,
+                    )
+                });
+                if let Some(f) = from_track {
+                    fit = Some(BlobFit::Fitted(f, true));
+                }
+            }
             match measure_blob(cx.img, view, b, s, radius[s], other, &lv, cx.cfg, dots, fit) {
                 Ok((m, f)) => {
                     fitted[s] = Some(f);
