@@ -58,12 +58,11 @@ pub fn taubin(points: &[[f64; 2]]) -> Option<([f64; 2], f64)> {
     (r.is_finite()).then_some(([xc + mx, yc + my], r))
 }
 
-/// Geometric least squares: minimise Σ(|p − c| − R)². Returns centre, radius, residuals and
-/// (JᵀJ)⁻¹.
-fn geometric(
-    points: &[[f64; 2]],
-    start: ([f64; 2], f64),
-) -> Option<([f64; 2], f64, Vec<f64>, Matrix3<f64>)> {
+/// What `geometric` returns: centre, radius, each point's residual and (JᵀJ)⁻¹.
+type GeometricFit = ([f64; 2], f64, Vec<f64>, Matrix3<f64>);
+
+/// Geometric least squares: minimise Σ(|p − c| − R)².
+fn geometric(points: &[[f64; 2]], start: ([f64; 2], f64)) -> Option<GeometricFit> {
     let mut q = Vector3::new(start.0[0], start.0[1], start.1);
     gauss_newton(&mut q, 30, |q| {
         let mut jtj = Matrix3::<f64>::zeros();

@@ -1,0 +1,208 @@
+//! Grey-level fits: the disc's edge modelled over every pixel within `PROFILE_BAND_PX` of it
+//! (further inside where the edge is blurred), integrated over each pixel's area where the edge
+//! crosses it; one disc, two discs whose rings meet fitted together, or the front disc hiding
+//! the back one. `ring` gathers the pixels, `model` holds the disc's shading averaged over a
+//! box, and `fit` the Levenberg–Marquardt fit of them.
+
+mod fit;
+mod model;
+mod ring;
+
+use super::edge::sectors_covered;
+use super::{CircleFit, DotMask, GreyImage, View};
+use fit::{fit_grey_levels, Layering};
+use ring::ring_pixels;
+
+/// Half-width of the band round the edge whose pixels the profile fit uses, px.
+pub const PROFILE_BAND_PX: f64 = 2.5;
+
+/// The disc's centre and radius from the grey levels of every pixel near its edge, not from
+/// edge points: a model I = background + L((R − d)/s)·S (L a logistic step of width s, S the
+/// sphere's shading inside the edge, see `fit_grey_levels`), integrated over each pixel's
+/// area, is fitted by
+/// Levenberg–Marquardt, starting from the edge-point fit. Why: a threshold crossing
+/// uses two samples per ray, and the edge-point fit's centre scatters about three times the
+/// Cramér–Rao bound (physics.md §6), most of it pixel locking; the model fit uses all of the
+/// edge's pixels. Pixels far off the model (dots on the rim) and their neighbours are dropped,
+/// and so are pixels near the other sphere's disc or beyond the view's border, as long as 20 of
+/// the ring's 36 sectors stay. Where the fit finds the edge blurred, it is fitted again from
+/// there on a ring reaching further inside (`INNER_BAND_PER_EDGE_WIDTH`). None when the fit
+/// does not settle near the start.
+pub fn profile_fit(
+    img: &GreyImage,
+    view: &View,
+    start: &CircleFit,
+    background: f64,
+    other: Option<([f64; 2], f64)>,
+    dots: &[DotMask],
+) -> Option<CircleFit> {
+    fit_one(img, view, start, background, other, dots, None)
+}
+
+/// `profile_fit` with the disc's radius held at `radius_px`: for a disc cut by the view's
+/// border, where the radius and the centre across the cut trade off (a free radius 0.5 px too
+/// small put such centres 0.9 px off).
+pub fn profile_fit_known_radius(
+    img: &GreyImage,
+    view: &View,
+    start: &CircleFit,
+    background: f64,
+    other: Option<([f64; 2], f64)>,
+    dots: &[DotMask],
+    radius_px: f64,
+) -> Option<CircleFit> {
+    fit_one(img, view, start, background, other, dots, Some(radius_px))
+}
+
+/// One disc's grey-level fit, its radius free or held at `radius_px` (then 12 of the ring's
+/// sectors suffice: the radius no longer needs the ring to go round).
+fn fit_one(
+    img: &GreyImage,
+    view: &View,
+    start: &CircleFit,
+    background: f64,
+    other: Option<([f64; 2], f64)>,
+    dots: &[DotMask],
+    radius_px: Option<f64>,
+) -> Option<CircleFit> {
+    let near_other = |u: f64, v: f64| {
+        other.is_some_and(|(oc, or)| dist(u - oc[0], v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
+    };
+    let start = CircleFit {
+        radius: radius_px.unwrap_or(start.radius),
+        ..*start
+    };
+    let min_sectors = if radius_px.is_some() { 12 } else { 20 };
+    let fit = |discs: [&CircleFit; 1], inner_px: f64| {
+        let pixels = ring_pixels(img, view, &discs, dots, near_other, min_sectors, inner_px)?;
+        fit_grey_levels::<11, 1>(&pixels, discs, background, Layering::Apart, radius_px)
+    };
+    let ([first], widths) = fit([&start], PROFILE_BAND_PX)?;
+    let Some(inner_px) = blurred_inner_band(&widths) else {
+        return Some(first);
+    };
+    let again = CircleFit {
+        centre: first.centre,
+        radius: first.radius,
+        ..start
+    };
+    Some(fit([&again], inner_px).map_or(first, |([f], _)| f))
+}
+
+/// How far inside a disc's edge the ring reaches once the fit has found the edge blurred, in
+/// edge widths s of the logistic step beyond `PROFILE_BAND_PX`: the blurred edge itself
+/// reaches about 2s in (where the step is within 12 % of its plateau), and the band must go
+/// past it to see the shading on its own. Why: on a defocused sphere the edge's blur, the
+/// shading's slope and its harmonic round the disc all explain the same few pixels, and the
+/// centre trades off with them — a lone sphere blurred by 1.1 px scattered 0.20 px (σ = 2)
+/// where its fit claimed 0.11, and lit from 30° to one side came out 0.05–0.06 px towards the
+/// lamp. With the ring reaching past the blur: 0.10 px against a claimed 0.085, and within
+/// 0.01 px (`circle::tests::a_defocused_sphere_is_measured_as_well_as_its_fit_claims`).
+const INNER_BAND_PER_EDGE_WIDTH: f64 = 2.0;
+
+/// The inner band a second fit should use after a first one (on `PROFILE_BAND_PX`) found the
+/// edge widths `widths`, px; None where the edges are sharp enough that it would add less
+/// than a quarter of a pixel (a sharp render's fit is left exactly as it was).
+fn blurred_inner_band(widths: &[f64]) -> Option<f64> {
+    let s = widths.iter().copied().fold(0.0, f64::max);
+    let extra = INNER_BAND_PER_EDGE_WIDTH * s;
+    (extra >= 0.25).then_some(PROFILE_BAND_PX + extra)
+}
+
+/// Two discs side by side whose rings come close, fitted together: the model is the background
+/// plus both discs' terms of `profile_fit`'s model, so the pixels between them, where both
+/// edges' blur adds up, are explained instead of left out. Why: fitted one at a time, each disc
+/// loses the part of its ring that faces the other — the part that fixes its centre along the
+/// line between them — just in the frames next to the impact that fix the contact normal; on
+/// the bench the centres there scattered 1.5–2 times as much along that line as far from it.
+/// Only for discs that do not overlap in the view (one partly behind the other hides, and
+/// hiding does not add up); None there and where the fit does not settle.
+pub fn profile_fit_pair(
+    img: &GreyImage,
+    view: &View,
+    starts: [&CircleFit; 2],
+    background: f64,
+    dots: &[DotMask],
+) -> Option<[CircleFit; 2]> {
+    let [a, b] = starts;
+    let apart = (a.centre[0] - b.centre[0]).hypot(a.centre[1] - b.centre[1]);
+    if apart < a.radius + b.radius - PAIR_OVERLAP_PX {
+        return None;
+    }
+    let fit = |discs: [&CircleFit; 2], inner_px: f64| {
+        let pixels = ring_pixels(img, view, &discs, dots, |_, _| false, 20, inner_px)?;
+        fit_grey_levels::<21, 2>(&pixels, discs, background, Layering::Apart, None)
+    };
+    let (first, widths) = fit(starts, PROFILE_BAND_PX)?;
+    let Some(inner_px) = blurred_inner_band(&widths) else {
+        return Some(first);
+    };
+    let again = [0, 1].map(|k| CircleFit {
+        centre: first[k].centre,
+        radius: first[k].radius,
+        ..*starts[k]
+    });
+    Some(fit([&again[0], &again[1]], inner_px).map_or(first, |(f, _)| f))
+}
+
+/// Two discs of one silhouette, one partly hiding the other (the mirror after an oblique
+/// impact), fitted together on the grey levels: the model is the front disc's term of
+/// `profile_fit`'s model over the back disc's, which shows only where the front one does not
+/// (and through the front's blurred edge), and the two radii keep the ratio of the starts.
+/// Why: the split into circles rests on outline points, and where the outlines meet they are
+/// neither circle's; as the spheres slide behind each other over a few frames the split circles
+/// drifted by 0.1 px, which a line fit took for a z velocity several σ off. `front` is the
+/// index (0 or 1) of the disc nearer the camera. None unless the discs are three quarters of
+/// the back one's radius apart or more and the back one shows at least a third of its edge, and
+/// where the fit does not settle.
+pub fn profile_fit_behind(
+    img: &GreyImage,
+    view: &View,
+    starts: [&CircleFit; 2],
+    front: usize,
+    background: f64,
+    dots: &[DotMask],
+) -> Option<[CircleFit; 2]> {
+    let (f, b) = (starts[front], starts[1 - front]);
+    // A crescent narrower than three quarters of the radius let the back disc slide along it by
+    // a tenth of a pixel in renders; the split's circles are better there.
+    if (f.centre[0] - b.centre[0]).hypot(f.centre[1] - b.centre[1]) < MIN_CRESCENT_RADII * b.radius
+    {
+        return None;
+    }
+    // (Only the ring's usual band: a crescent's inside is mostly the front disc's.)
+    let pixels = ring_pixels(img, view, &starts, dots, |_, _| false, 20, PROFILE_BAND_PX)?;
+    let shown: Vec<[f64; 2]> = pixels
+        .iter()
+        .filter(|q| {
+            ((q.u - b.centre[0]).hypot(q.v - b.centre[1]) - b.radius).abs() < 1.0
+                && (q.u - f.centre[0]).hypot(q.v - f.centre[1]) > f.radius + 1.0
+        })
+        .map(|q| [q.u, q.v])
+        .collect();
+    if sectors_covered(&shown, b.centre) < 12 {
+        return None;
+    }
+    fit_grey_levels::<21, 2>(&pixels, starts, background, Layering::InFront(front), None)
+        .map(|(fit, _)| fit)
+}
+
+/// The narrowest crescent `profile_fit_behind` fits, in radii of the back disc.
+const MIN_CRESCENT_RADII: f64 = 0.75;
+
+/// How far two discs may overlap in a view and still be fitted as a sum (`profile_fit_pair`),
+/// px: touching spheres whose contact normal leans a few degrees out of the view's plane.
+pub const PAIR_OVERLAP_PX: f64 = 0.3;
+
+/// Whether two discs' rings are close enough that fitting each alone leaves part of it out
+/// (`profile_fit` drops the pixels near the other disc).
+pub fn rings_meet(a: &CircleFit, b: &CircleFit) -> bool {
+    let apart = (a.centre[0] - b.centre[0]).hypot(a.centre[1] - b.centre[1]);
+    apart < a.radius + b.radius + 2.0 * PROFILE_BAND_PX + 1.0
+}
+
+/// √(dx² + dy²): at pixel scale nothing overflows, and `hypot`'s care costs several times a
+/// √ on every pixel of every ring.
+fn dist(dx: f64, dy: f64) -> f64 {
+    (dx * dx + dy * dy).sqrt()
+}
