@@ -142,11 +142,9 @@ impl Default for Status {
 }
 
 pub fn bar(done: usize, total: usize, width: usize) -> String {
-    let filled = if total == 0 {
-        width
-    } else {
-        (done * width / total).min(width)
-    };
+    let filled = (done * width)
+        .checked_div(total)
+        .map_or(width, |f| f.min(width));
     format!(
         "[{}{}] {done}/{total}",
         "#".repeat(filled),

@@ -30,6 +30,9 @@ pub fn measure(
     Ok((views, obs))
 }
 
+/// Per frame, per view, each whole blob's (centroid px, equivalent diameter px).
+pub type BlobSurvey = Vec<Vec<Vec<([f64; 2], f64)>>>;
+
 /// The whole (unclipped) blobs of every view in up to `frames` frames spread across the
 /// recording, backdrop removed, as [frame][view] → (centroid px, equivalent diameter px): what
 /// `calibrate` reads the views' rough scales and the mirror's offset from, before any geometry
@@ -38,7 +41,7 @@ pub fn blob_survey(
     src: &mut dyn FrameSource,
     cfg: &Config,
     frames: usize,
-) -> Result<Vec<Vec<Vec<([f64; 2], f64)>>>, AnalysisError> {
+) -> Result<BlobSurvey, AnalysisError> {
     Ok(blobs(src, cfg, frames)?
         .into_iter()
         .map(|f| {

@@ -324,8 +324,8 @@ pub fn fit_text(f: &CampaignFit) -> String {
     }
     let _ = writeln!(
         s,
-        "\n{:<28} {:>6} {:>16} {:>16} {:>16} {:>10} {}",
-        "collision", "tube°", "e", "psi1", "psi2", "class", ""
+        "\n{:<28} {:>6} {:>16} {:>16} {:>16} {:>10} ",
+        "collision", "tube°", "e", "psi1", "psi2", "class"
     );
     let pm = |e: &Option<crate::analysis::report::Estimate<f64>>| {
         e.as_ref()

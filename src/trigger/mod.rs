@@ -330,11 +330,10 @@ mod tests {
         }
     }
 
-    fn trigger(
-        pulse_ms: f64,
-        max_ms: f64,
-        fail_close: bool,
-    ) -> (Trigger, Arc<Mutex<Vec<(Instant, bool)>>>) {
+    /// What a `Recording` relay saw: each switching, when and whether it closed.
+    type SwitchLog = Arc<Mutex<Vec<(Instant, bool)>>>;
+
+    fn trigger(pulse_ms: f64, max_ms: f64, fail_close: bool) -> (Trigger, SwitchLog) {
         let log = Arc::new(Mutex::new(Vec::new()));
         (
             Trigger::new(

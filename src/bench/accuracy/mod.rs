@@ -429,10 +429,10 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
     }
     // Rotation per frame pair (≥ 4 markers) against the true constant spin of the phase.
     let rounded = thesis::rounded(&details.obs, &details.views, cfg);
-    for k in 0..4 {
+    for (k, true_spin) in true_spins.iter().enumerate() {
         for p in details.spins[k].pairs.iter().filter(|p| p.markers >= 4) {
             out.rot_err_deg
-                .push(angle_err(p.rotvec, true_spins[k] * p.dt_s));
+                .push(angle_err(p.rotvec, true_spin * p.dt_s));
         }
         let (pairs, _) = spin::pairs(
             &rounded,
@@ -444,7 +444,7 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
         );
         for p in pairs.iter().filter(|p| p.markers >= 4) {
             out.thesis_rot_err_deg
-                .push(angle_err(p.rotvec, true_spins[k] * p.dt_s));
+                .push(angle_err(p.rotvec, true_spin * p.dt_s));
         }
     }
     let th = thesis::estimate(&details.obs, &details.views, cfg, details.impact_time_s);
