@@ -308,15 +308,10 @@ pub fn fit_edges(
             if fit.is_none() && 2 * hidden > rays {
                 return Some((
                     CircleFit {
-                        centre,
-                        radius: radius_px,
-                        centre_sigma: [f64::INFINITY; 2],
-                        radius_sigma: f64::INFINITY,
-                        rms_px: f64::INFINITY,
                         points_used: pts.len(),
                         points_total: pts.len(),
                         arc_sectors: sectors_covered(&pts, centre),
-                        grey_levels: false,
+                        ..CircleFit::start_at(centre, radius_px)
                     },
                     true,
                 ));

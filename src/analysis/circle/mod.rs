@@ -42,6 +42,24 @@ pub struct CircleFit {
     pub grey_levels: bool,
 }
 
+impl CircleFit {
+    /// A start for a fit and nothing measured yet: the disc at `centre` with radius `radius_px`,
+    /// its σ infinite and no edge points behind it.
+    pub fn start_at(centre: [f64; 2], radius_px: f64) -> CircleFit {
+        CircleFit {
+            centre,
+            radius: radius_px,
+            centre_sigma: [f64::INFINITY; 2],
+            radius_sigma: f64::INFINITY,
+            rms_px: f64::INFINITY,
+            points_used: 0,
+            points_total: 0,
+            arc_sectors: 0,
+            grey_levels: false,
+        }
+    }
+}
+
 /// Refines a rough centre to a sub-pixel circle fit: edge points first (`fit_edges`), then the
 /// grey levels near the edge (`profile_fit`) where it settles. `other` is the other sphere's
 /// disc (centre, radius px) in the same view, when it is there. Where a static backdrop hid
@@ -92,18 +110,14 @@ pub fn profile_fit_at(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
 ) -> Option<CircleFit> {
-    let start = CircleFit {
-        centre,
-        radius: radius_px,
-        centre_sigma: [f64::INFINITY; 2],
-        radius_sigma: f64::INFINITY,
-        rms_px: f64::INFINITY,
-        points_used: 0,
-        points_total: 0,
-        arc_sectors: 0,
-        grey_levels: false,
-    };
-    profile_fit(img, view, &start, background, other, dots)
+    profile_fit(
+        img,
+        view,
+        &CircleFit::start_at(centre, radius_px),
+        background,
+        other,
+        dots,
+    )
 }
 
 /// Where a marker is expected on a sphere's rim in one frame, px: the grey-level fit leaves out
