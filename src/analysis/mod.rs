@@ -29,6 +29,7 @@ pub mod stages;
 mod survey;
 pub use survey::{blob_survey, blobs, measure};
 pub mod spin;
+pub mod spin_tracks;
 pub mod thesis;
 pub mod tracking;
 pub mod tracks;

@@ -95,6 +95,12 @@ fn ls_omega(pairs: &[&PairRotation]) -> Option<V3> {
     (den > 0.0).then(|| num / den)
 }
 
+/// The least-squares ω of frame pairs (rotvec ≈ ω·Δt, weighted by markers), with no covariance
+/// and no least number of frames: a start for the whole-track fit (`spin_tracks`).
+pub fn ls_omega_of(pairs: &[PairRotation]) -> Option<V3> {
+    ls_omega(&pairs.iter().collect::<Vec<_>>())
+}
+
 /// The fewest frames a spin is fitted on. Fewer leave the frame-clustered covariance too few
 /// degrees of freedom to be believed: on independent frame errors, four or five frames put
 /// 2–5 % of their errors beyond 5σ (test `a_fit_on_few_frames_claims_no_more_than_they_show`).

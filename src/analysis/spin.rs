@@ -1,11 +1,13 @@
 //! Spin of each sphere before and after the impact, from its markers: markers are tracked from
 //! frame to frame within each view (predicted with the current spin estimate, assigned nearest
-//! first within a gate, so markers may appear and vanish at the limb), rotations are estimated
-//! between frame pairs from the markers both frames share, and one constant ω is fitted per
-//! flight phase (`rotation::fit_spin`).
+//! first within a gate, so markers may appear and vanish at the limb), and one constant ω is
+//! fitted per flight phase to the whole tracks (`spin_tracks`); where they are too few, to the
+//! rotations between frame pairs from the markers both frames share (`rotation::fit_spin`, also
+//! the thesis baseline's way).
 
 use super::markers::MarkerObs;
 use super::rotation::{self, PairRotation, RotationMethod, SpinFit, V3};
+use super::spin_tracks::{self, Sighting};
 use super::tracking::FrameObs;
 use nalgebra::Rotation3;
 use std::collections::HashMap;
@@ -71,6 +73,25 @@ fn track(obs: &[FrameObs], frames: &[usize], s: usize, omega: V3, gate_mm: f64) 
             active.retain(|(_, _, t)| now - t <= 3.5 * period.max(1e-9));
         }
     }
+    out
+}
+
+/// Every marker sighting of the tracked frames, for the whole-track fit.
+fn sightings(obs: &[FrameObs], tracked: &Tracked) -> Vec<Sighting> {
+    let mut out = Vec::new();
+    for (k, markers) in tracked {
+        for (key, (rel_mm, weight)) in markers {
+            out.push(Sighting {
+                frame: *k,
+                time_s: obs[*k].time_s,
+                track: *key,
+                rel_mm: *rel_mm,
+                weight: *weight,
+            });
+        }
+    }
+    // HashMap order is not fixed: sort, so that the fit (and the report) is bit-exact.
+    out.sort_by_key(|s| (s.frame, s.track));
     out
 }
 
@@ -178,9 +199,25 @@ pub fn measure(
     let mut omega = V3::zeros();
     // First pass without prediction and a wide gate; then predicted with the spin found.
     for gate in [1.3, 0.6] {
-        let (pairs, counts) = pairs(obs, frames, s, method, omega, gate);
+        let tracked = track(obs, frames, s, omega, gate);
+        let mut pairs = pair_rotations(&tracked, method);
+        for p in pairs.iter_mut() {
+            p.dt_s = obs[p.frame_b].time_s - obs[p.frame_a].time_s;
+        }
+        let counts = tracked.iter().map(|(k, m)| (*k, m.len() as u32)).collect();
+        // Whole marker tracks first: they use every sighting, also of a marker no other shares
+        // a frame pair with. The pair rotations where the tracks are too few or too short, and
+        // for the thesis's method, which is kept as the thesis had it.
+        let fit = match method {
+            RotationMethod::Kabsch => {
+                let start = rotation::ls_omega_of(&pairs).unwrap_or(omega);
+                spin_tracks::fit(&sightings(obs, &tracked), start)
+                    .or_else(|| rotation::fit_spin(&pairs))
+            }
+            RotationMethod::Thesis => rotation::fit_spin(&pairs),
+        };
         out = SpinMeasurement {
-            fit: rotation::fit_spin(&pairs),
+            fit,
             markers_per_frame: counts,
             pairs,
         };

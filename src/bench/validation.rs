@@ -282,6 +282,8 @@ pub fn validation(dir: &Path) -> Result<String, String> {
         "", "Δe", "Δψ1", "Δψ2", "Δβ", "centre RMS", "found", "max |z|"
     );
     let mut all_z = Vec::new();
+    // Which estimates lie beyond 5σ, named, so that a regression shows where it is.
+    let mut far: Vec<String> = Vec::new();
     for r in &rows {
         match &r.outcome {
             Err(e) => {
@@ -312,6 +314,12 @@ pub fn validation(dir: &Path) -> Result<String, String> {
                     .collect();
                 let max_z = zs.iter().fold(0.0f64, |m, z| m.max(z.abs()));
                 all_z.extend(zs);
+                far.extend(
+                    f.estimates
+                        .iter()
+                        .filter(|e| e.2.abs() > 5.0)
+                        .map(|e| format!("  {} {}: error {:+.4} ({:+.1}σ)", r.name, e.0, e.1, e.2)),
+                );
                 let _ = writeln!(
                     out,
                     "{:<6} {:>9} {:>9} {:>9} {:>9} {:>7.3} px {:>4}/{:<4} {:>8.1}",
@@ -374,5 +382,8 @@ pub fn validation(dir: &Path) -> Result<String, String> {
         all_z.len(),
         if all_z.is_empty() { f64::NAN } else { 100.0 * covered as f64 / all_z.len() as f64 }
     );
+    for line in far {
+        let _ = writeln!(out, "{line}");
+    }
     Ok(out)
 }

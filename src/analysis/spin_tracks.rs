@@ -1,0 +1,444 @@
+//! Spin from whole marker tracks: one constant ω and each tracked marker's place on the sphere,
+//! fitted together to every sighting of it (physics.md §4).
+//!
+//! The frame-pair rotations (`rotation::fit_spin`) need two markers that both frames of a pair
+//! show. A sphere lit or painted so that a view finds one or two markers a frame — fast spin
+//! carries them over the limb within a few frames — leaves too few such pairs, and its spin went
+//! unmeasured. One marker followed over three or more frames draws an arc whose plane and rate
+//! fix ω by themselves; this fit uses every such arc, of every view, at once.
+//!
+//! Model: sighting i of track j at time t is q_i = R(ω·(t − t_ref)) p_j + noise. For a given ω
+//! the best p_j is the weighted mean of the sightings rotated back (R is orthogonal), so only ω
+//! is searched (variable projection); its covariance is clustered by frame, as the pair fit's
+//! is, and comes with each frame's influence for the same uses.
+
+use super::rotation::{SpinFit, MIN_SPIN_FRAMES, V3};
+use nalgebra::{Matrix3, Rotation3};
+use std::collections::BTreeMap;
+
+/// One marker seen in one frame: the frame, its time, the track it belongs to (unique over the
+/// views), where it is relative to the sphere centre (world mm) and its weight.
+#[derive(Clone, Copy, Debug)]
+pub struct Sighting {
+    pub frame: usize,
+    pub time_s: f64,
+    pub track: (usize, usize),
+    pub rel_mm: V3,
+    pub weight: f64,
+}
+
+/// A sighting this far from where the fit puts it was assigned to the wrong track (the same
+/// bound as a frame pair's marker outlier in `spin.rs`).
+const MARKER_OUTLIER_MM: f64 = 0.35;
+/// The fewest sightings a track needs to count. A track seen once fixes only its own place;
+/// one seen twice adds a single frame pair, which the pair rotations use anyway, and a false
+/// marker or a wrong assignment is then as good as a true one. On independent backlit renders
+/// with faint markers (validation v04) the fit leaning on such pairs put a spin 270 rad/s off
+/// at 20σ; from three sightings on, an arc must also bend the way a rotation does.
+const MIN_TRACK_SIGHTINGS: usize = 3;
+
+struct Problem<'a> {
+    /// Sightings grouped by track, each with τ = t − t_ref.
+    tracks: Vec<Vec<(&'a Sighting, f64)>>,
+}
+
+impl Problem<'_> {
+    /// Residuals (3 per sighting, each scaled by √w) at ω, in track order.
+    fn residuals(&self, omega: &V3, out: &mut Vec<f64>) {
+        out.clear();
+        for t in &self.tracks {
+            let rots: Vec<Rotation3<f64>> = t
+                .iter()
+                .map(|(_, tau)| Rotation3::from_scaled_axis(omega * *tau))
+                .collect();
+            let (mut sum, mut wsum) = (V3::zeros(), 0.0);
+            for ((s, _), r) in t.iter().zip(&rots) {
+                sum += s.weight * r.inverse_transform_vector(&s.rel_mm);
+                wsum += s.weight;
+            }
+            let p = sum / wsum;
+            for ((s, _), r) in t.iter().zip(&rots) {
+                let d = (s.rel_mm - r * p) * s.weight.sqrt();
+                out.extend_from_slice(d.as_slice());
+            }
+        }
+    }
+
+    /// The residuals' Jacobian by ω (central differences; the profile over the p_j is smooth).
+    fn jacobian(&self, omega: &V3, r0_len: usize) -> Vec<[f64; 3]> {
+        let mut jac = vec![[0.0; 3]; r0_len];
+        let (mut plus, mut minus) = (Vec::new(), Vec::new());
+        for c in 0..3 {
+            let h = 1e-4 * (1.0 + omega.norm());
+            let mut d = V3::zeros();
+            d[c] = h;
+            self.residuals(&(omega + d), &mut plus);
+            self.residuals(&(omega - d), &mut minus);
+            for (row, (a, b)) in jac.iter_mut().zip(plus.iter().zip(&minus)) {
+                row[c] = (a - b) / (2.0 * h);
+            }
+        }
+        jac
+    }
+
+    fn cost(&self, omega: &V3, buf: &mut Vec<f64>) -> f64 {
+        self.residuals(omega, buf);
+        buf.iter().map(|x| x * x).sum()
+    }
+
+    /// A start that needs no guess: for two sightings of a track Δt apart, the Rodrigues
+    /// vector g = tan(θ/2)·axis of the rotation between them satisfies g × (q_a + q_b) =
+    /// q_b − q_a exactly, and g ≈ ω·Δt/2 while θ is small, so ω × (q_a + q_b) ≈ 2 (q_b − q_a)/Δt
+    /// is linear in ω (4 % off at 0.7 rad between sightings; the fit then goes the rest of the
+    /// way). Least squares over each track's consecutive sightings.
+    fn linear_start(&self) -> Option<V3> {
+        let (mut ata, mut atb) = (Matrix3::zeros(), V3::zeros());
+        for t in &self.tracks {
+            for w in t.windows(2) {
+                let ((a, ta), (b, tb)) = (w[0], w[1]);
+                let dt = tb - ta;
+                if dt <= 0.0 {
+                    continue;
+                }
+                let weight = a.weight.min(b.weight);
+                // ω × m = −[m]× ω.
+                let m = a.rel_mm + b.rel_mm;
+                let am = -m.cross_matrix();
+                let rhs = (b.rel_mm - a.rel_mm) * (2.0 / dt);
+                ata += weight * am.transpose() * am;
+                atb += weight * am.transpose() * rhs;
+            }
+        }
+        let omega = ata.try_inverse()? * atb;
+        omega.iter().all(|x| x.is_finite()).then_some(omega)
+    }
+
+    /// Levenberg–Marquardt over ω from `start`.
+    fn solve(&self, start: V3) -> Option<V3> {
+        let mut omega = start;
+        let mut r = Vec::new();
+        let mut cost = self.cost(&omega, &mut r);
+        let mut lambda = 1e-3;
+        for _ in 0..100 {
+            let jac = self.jacobian(&omega, r.len());
+            let (mut jtj, mut jtr) = (Matrix3::zeros(), V3::zeros());
+            for (row, ri) in jac.iter().zip(&r) {
+                let j = V3::from(*row);
+                jtj += j * j.transpose();
+                jtr += j * *ri;
+            }
+            let mut improved = false;
+            for _ in 0..20 {
+                let mut a = jtj;
+                for c in 0..3 {
+                    a[(c, c)] *= 1.0 + lambda;
+                }
+                let step = a.try_inverse()? * -jtr;
+                let trial = omega + step;
+                let mut rt = Vec::new();
+                let c = self.cost(&trial, &mut rt);
+                if c.is_finite() && c <= cost {
+                    let small = step.norm() <= 1e-9 * (1.0 + omega.norm());
+                    omega = trial;
+                    cost = c;
+                    r = rt;
+                    lambda = (lambda * 0.3).max(1e-12);
+                    improved = !small;
+                    break;
+                }
+                lambda *= 10.0;
+            }
+            if !improved {
+                break;
+            }
+        }
+        omega.iter().all(|x| x.is_finite()).then_some(omega)
+    }
+}
+
+/// Constant ω fitted to whole marker tracks, started at `start` (the pair fit's ω, or the
+/// prediction the tracks were followed with). None where fewer than `MIN_SPIN_FRAMES` frames
+/// show a marker seen twice or more. Arcs too short to fix an axis show as a large σ.
+pub fn fit(sightings: &[Sighting], start: V3) -> Option<SpinFit> {
+    let mut kept: Vec<Sighting> = sightings.to_vec();
+    // Drop the worst misfit while it is beyond the outlier bound (a marker followed onto its
+    // neighbour), refitting each time; at most a tenth of the sightings.
+    let limit = kept.len() / 10;
+    let mut omega = start;
+    for round in 0..=limit {
+        let problem = build(&kept)?;
+        // From the linear start and from the caller's, whichever ends lower.
+        let mut buf = Vec::new();
+        omega = [problem.linear_start(), Some(omega)]
+            .into_iter()
+            .flatten()
+            .filter_map(|s| problem.solve(s))
+            .map(|w| (problem.cost(&w, &mut buf), w))
+            .min_by(|a, b| a.0.total_cmp(&b.0))?
+            .1;
+        let mut r = Vec::new();
+        problem.residuals(&omega, &mut r);
+        let order: Vec<&Sighting> = problem.tracks.iter().flatten().map(|(s, _)| *s).collect();
+        let (worst, err) = r
+            .chunks(3)
+            .zip(&order)
+            .map(|(c, s)| V3::new(c[0], c[1], c[2]).norm() / s.weight.sqrt().max(1e-12))
+            .enumerate()
+            .fold((0, 0.0), |acc, (i, e)| if e > acc.1 { (i, e) } else { acc });
+        if err < MARKER_OUTLIER_MM || round == limit {
+            break;
+        }
+        let bad = *order[worst];
+        kept.retain(|s| !(s.frame == bad.frame && s.track == bad.track));
+    }
+    let problem = build(&kept)?;
+    covariance(&problem, omega)
+}
+
+fn build(kept: &[Sighting]) -> Option<Problem<'_>> {
+    let mut by_track: BTreeMap<(usize, usize), Vec<&Sighting>> = BTreeMap::new();
+    for s in kept {
+        if s.weight > 0.0 && s.rel_mm.iter().all(|x| x.is_finite()) {
+            by_track.entry(s.track).or_default().push(s);
+        }
+    }
+    by_track.retain(|_, v| v.len() >= MIN_TRACK_SIGHTINGS);
+    let all: Vec<&Sighting> = by_track.values().flatten().copied().collect();
+    let wsum: f64 = all.iter().map(|s| s.weight).sum();
+    if all.is_empty() || wsum <= 0.0 {
+        return None;
+    }
+    let t_ref = all.iter().map(|s| s.weight * s.time_s).sum::<f64>() / wsum;
+    Some(Problem {
+        tracks: by_track
+            .into_values()
+            .map(|v| v.into_iter().map(|s| (s, s.time_s - t_ref)).collect())
+            .collect(),
+    })
+}
+
+/// ω's covariance clustered by frame (the same sandwich and small-sample factor as
+/// `rotation::fit_spin`): each frame's influence is (J̃ᵀJ̃)⁻¹ Σ over its sightings of J̃ᵢᵀ rᵢ,
+/// with J̃ the Jacobian of the residuals profiled over the tracks' places.
+fn covariance(problem: &Problem, omega: V3) -> Option<SpinFit> {
+    let mut r = Vec::new();
+    problem.residuals(&omega, &mut r);
+    let jac = problem.jacobian(&omega, r.len());
+    let order: Vec<&Sighting> = problem.tracks.iter().flatten().map(|(s, _)| *s).collect();
+    let mut jtj = Matrix3::zeros();
+    let mut per_frame: BTreeMap<usize, V3> = BTreeMap::new();
+    for (i, s) in order.iter().enumerate() {
+        for k in 0..3 {
+            let j = V3::from(jac[3 * i + k]);
+            jtj += j * j.transpose();
+            *per_frame.entry(s.frame).or_insert_with(V3::zeros) += j * r[3 * i + k];
+        }
+    }
+    if per_frame.len() < MIN_SPIN_FRAMES {
+        return None;
+    }
+    let inv = jtj.try_inverse()?;
+    let n = per_frame.len() as f64;
+    // Clustered by frame and by track (two-way: V_frame + V_track − V_sighting). A marker's
+    // mislocation drifts as it crosses the shading, so one track's sightings err together, which
+    // clustering by frame alone does not see: with frames only, 15 of 450 spin components of
+    // the bench's varied looks landed beyond 5σ. The excess over the frame-clustered variance
+    // is carried as one factor on the frames' influences, the largest over the axes, so that
+    // `frame_influence` still sums to the covariance.
+    let mut per_track: BTreeMap<(usize, usize), V3> = BTreeMap::new();
+    let mut v_sighting = Matrix3::zeros();
+    for (i, s) in order.iter().enumerate() {
+        let mut g = V3::zeros();
+        for k in 0..3 {
+            g += V3::from(jac[3 * i + k]) * r[3 * i + k];
+        }
+        *per_track.entry(s.track).or_insert_with(V3::zeros) += g;
+        let u = inv * g;
+        v_sighting += u * u.transpose();
+    }
+    let outer = |gs: &mut dyn Iterator<Item = &V3>| {
+        gs.fold(Matrix3::zeros(), |c, g| {
+            let u = inv * g;
+            c + u * u.transpose()
+        })
+    };
+    let v_frame = outer(&mut per_frame.values());
+    let v_two_way = v_frame + outer(&mut per_track.values()) - v_sighting;
+    let excess = (0..3)
+        .map(|i| v_two_way[(i, i)] / v_frame[(i, i)])
+        .filter(|x| x.is_finite())
+        .fold(1.0f64, f64::max);
+    // n/(n − 3) as in `rotation::fit_spin`: the clustered covariance's small-sample factor
+    // times Student's t variance.
+    let scale = (n / (n - 3.0) * excess).sqrt();
+    let frame_influence: Vec<(usize, V3)> = per_frame
+        .into_iter()
+        .map(|(f, g)| (f, inv * g * scale))
+        .collect();
+    let cov = frame_influence
+        .iter()
+        .fold(Matrix3::zeros(), |c, (_, d)| c + d * d.transpose());
+    cov.iter().all(|x| x.is_finite()).then_some(SpinFit {
+        omega,
+        cov,
+        pairs: order.len(),
+        frame_influence,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Sightings of markers on a sphere of radius 3.175 mm spinning at `omega`, each marker seen
+    /// only while on the hemisphere facing +z and `visible(frame, marker)` allows, with
+    /// independent noise of `noise_mm` on each coordinate.
+    fn sightings(
+        omega: V3,
+        markers: &[V3],
+        frames: usize,
+        noise_mm: f64,
+        visible: &dyn Fn(usize, usize) -> bool,
+        rng: &mut hw_sim::Rng,
+    ) -> Vec<Sighting> {
+        let mut out = Vec::new();
+        for k in 0..frames {
+            let t = k as f64 * 1e-3;
+            let r = Rotation3::from_scaled_axis(omega * t);
+            for (m, p) in markers.iter().enumerate() {
+                let q = r * p;
+                if q.z > 0.5 && visible(k, m) {
+                    let e = V3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * noise_mm;
+                    out.push(Sighting {
+                        frame: k,
+                        time_s: t,
+                        track: (0, m),
+                        rel_mm: q + e,
+                        weight: 1.0,
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    fn on_sphere(dirs: &[[f64; 3]]) -> Vec<V3> {
+        dirs.iter()
+            .map(|d| V3::from(*d).normalize() * 3.175)
+            .collect()
+    }
+
+    /// One marker a frame, never two in the same frame: no frame pair shares two markers, so
+    /// the pair fit has nothing, and the arcs alone must give ω to within a few σ.
+    #[test]
+    fn one_marker_a_frame_gives_the_spin() {
+        let omega = V3::new(-14.0, 12.0, 230.0);
+        let markers = on_sphere(&[[0.3, 0.2, 1.0], [-0.5, 0.4, 0.8], [0.1, -0.6, 0.7]]);
+        let mut rng = hw_sim::Rng::new(3);
+        // Marker m shows in frames m, m + 3, m + 6, …: one at a time.
+        let s = sightings(omega, &markers, 30, 0.0, &|k, m| k % 3 == m, &mut rng);
+        let per_frame = |k: usize| s.iter().filter(|x| x.frame == k).count();
+        assert!((0..30).all(|k| per_frame(k) <= 1));
+        let fit = fit(&s, V3::zeros()).expect("three tracks over 30 frames");
+        assert!((fit.omega - omega).norm() < 1e-6, "{:?}", fit.omega);
+    }
+
+    /// With noise, ±1σ covers the true ω about as often as it should and nothing lands beyond
+    /// 5σ, on tracks that come and go (markers seen for 4–9 frames).
+    #[test]
+    fn the_covariance_covers_noisy_tracks() {
+        let omega = V3::new(20.0, -35.0, 180.0);
+        let markers = on_sphere(&[
+            [0.3, 0.2, 1.0],
+            [-0.5, 0.4, 0.8],
+            [0.1, -0.6, 0.7],
+            [0.7, 0.1, 0.4],
+            [-0.2, -0.3, 0.9],
+        ]);
+        let mut rng = hw_sim::Rng::new(17);
+        let trials = 300;
+        let (mut inside, mut beyond5, mut total) = (0, 0, 0);
+        for trial in 0..trials {
+            let phase = trial % 7;
+            let s = sightings(
+                omega,
+                &markers,
+                24,
+                0.04,
+                &|k, m| (k + 3 * m + phase) % 11 < 4 + m,
+                &mut rng,
+            );
+            let Some(fit) = fit(&s, V3::zeros()) else {
+                continue;
+            };
+            for i in 0..3 {
+                let z = (fit.omega[i] - omega[i]) / fit.cov[(i, i)].sqrt();
+                total += 1;
+                inside += usize::from(z.abs() <= 1.0);
+                beyond5 += usize::from(z.abs() > 5.0);
+            }
+        }
+        let coverage = inside as f64 / total as f64;
+        assert!(
+            total >= 3 * trials * 9 / 10,
+            "fitted {} of {trials}",
+            total / 3
+        );
+        assert!((0.55..=0.85).contains(&coverage), "±1σ coverage {coverage}");
+        assert_eq!(beyond5, 0);
+    }
+
+    /// A marker's mislocation drifts along its track (it crosses the shading): each track's
+    /// sightings err together, by an offset that grows along the track. Clustered by frame
+    /// alone, the covariance misses that and puts errors far beyond 5σ; clustered by frame and
+    /// by track it must not.
+    #[test]
+    fn errors_shared_along_a_track_are_covered() {
+        let omega = V3::new(20.0, -35.0, 180.0);
+        let markers = on_sphere(&[
+            [0.3, 0.2, 1.0],
+            [-0.5, 0.4, 0.8],
+            [0.1, -0.6, 0.7],
+            [0.7, 0.1, 0.4],
+            [-0.2, -0.3, 0.9],
+        ]);
+        let mut rng = hw_sim::Rng::new(29);
+        let trials = 300;
+        let (mut inside, mut beyond5, mut total) = (0, 0, 0);
+        for trial in 0..trials {
+            let phase = trial % 7;
+            let mut s = sightings(
+                omega,
+                &markers,
+                24,
+                0.01,
+                &|k, m| (k + 3 * m + phase) % 11 < 4 + m,
+                &mut rng,
+            );
+            // Per track, an offset drifting linearly along it: 0.005 mm a frame.
+            let drift: Vec<V3> = (0..markers.len())
+                .map(|_| V3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * 0.005)
+                .collect();
+            for x in s.iter_mut() {
+                x.rel_mm += drift[x.track.1] * x.frame as f64;
+            }
+            let Some(fit) = fit(&s, V3::zeros()) else {
+                continue;
+            };
+            for i in 0..3 {
+                let z = (fit.omega[i] - omega[i]) / fit.cov[(i, i)].sqrt();
+                total += 1;
+                inside += usize::from(z.abs() <= 1.0);
+                beyond5 += usize::from(z.abs() > 5.0);
+            }
+        }
+        let coverage = inside as f64 / total as f64;
+        assert!(
+            total >= 3 * trials * 9 / 10,
+            "fitted {} of {trials}",
+            total / 3
+        );
+        assert!(coverage >= 0.55, "±1σ coverage {coverage}");
+        assert!(beyond5 <= total / 200, "{beyond5} of {total} beyond 5σ");
+    }
+}
