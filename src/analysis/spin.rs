@@ -211,7 +211,11 @@ pub fn measure(
         let fit = match method {
             RotationMethod::Kabsch => {
                 let start = rotation::ls_omega_of(&pairs).unwrap_or(omega);
-                spin_tracks::fit(&sightings(obs, &tracked), start)
+                // Each phase of each sphere its own source for the model term's influence
+                // (distinct from any frame and from the impulse's terms).
+                let first = frames.first().copied().unwrap_or(0);
+                let source = (usize::MAX - 64).saturating_sub(2 * first + s);
+                spin_tracks::fit(&sightings(obs, &tracked), start, source)
                     .or_else(|| rotation::fit_spin(&pairs))
             }
             RotationMethod::Thesis => rotation::fit_spin(&pairs),
