@@ -177,15 +177,30 @@ pub fn pairs(
     omega: V3,
     gate_mm: f64,
 ) -> (Vec<PairRotation>, HashMap<usize, u32>) {
+    let (tracked, pairs) = tracked_pairs(obs, frames, s, method, omega, gate_mm);
+    (pairs, markers_per_frame(&tracked))
+}
+
+/// The tracks of sphere `s`'s markers over the given frames, and the frame-pair rotations
+/// they give (with the time between each pair's frames).
+fn tracked_pairs(
+    obs: &[FrameObs],
+    frames: &[usize],
+    s: usize,
+    method: RotationMethod,
+    omega: V3,
+    gate_mm: f64,
+) -> (Tracked, Vec<PairRotation>) {
     let tracked = track(obs, frames, s, omega, gate_mm);
     let mut pairs = pair_rotations(&tracked, method);
     for p in pairs.iter_mut() {
         p.dt_s = obs[p.frame_b].time_s - obs[p.frame_a].time_s;
     }
-    (
-        pairs,
-        tracked.iter().map(|(k, m)| (*k, m.len() as u32)).collect(),
-    )
+    (tracked, pairs)
+}
+
+fn markers_per_frame(tracked: &Tracked) -> HashMap<usize, u32> {
+    tracked.iter().map(|(k, m)| (*k, m.len() as u32)).collect()
 }
 
 /// Spin of sphere `s` over the given frames (one flight phase).
@@ -199,12 +214,7 @@ pub fn measure(
     let mut omega = V3::zeros();
     // First pass without prediction and a wide gate; then predicted with the spin found.
     for gate in [1.3, 0.6] {
-        let tracked = track(obs, frames, s, omega, gate);
-        let mut pairs = pair_rotations(&tracked, method);
-        for p in pairs.iter_mut() {
-            p.dt_s = obs[p.frame_b].time_s - obs[p.frame_a].time_s;
-        }
-        let counts = tracked.iter().map(|(k, m)| (*k, m.len() as u32)).collect();
+        let (tracked, pairs) = tracked_pairs(obs, frames, s, method, omega, gate);
         // Whole marker tracks first: they use every sighting, also of a marker no other shares
         // a frame pair with. The pair rotations where the tracks are too few or too short, and
         // for the thesis's method, which is kept as the thesis had it.
@@ -222,7 +232,7 @@ pub fn measure(
         };
         out = SpinMeasurement {
             fit,
-            markers_per_frame: counts,
+            markers_per_frame: markers_per_frame(&tracked),
             pairs,
         };
         match &out.fit {

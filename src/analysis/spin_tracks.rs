@@ -415,10 +415,11 @@ mod tests {
         assert!((fit.omega - omega).norm() < 1e-6, "{:?}", fit.omega);
     }
 
-    /// With noise, ±1σ covers the true ω about as often as it should and nothing lands beyond
-    /// 5σ, on tracks that come and go (markers seen for 4–9 frames).
-    #[test]
-    fn the_covariance_covers_noisy_tracks() {
+    /// Errors of the fitted ω in σ (each component), over 300 draws of five markers seen for
+    /// 4–9 frames each (tracks that come and go), with independent noise of `noise_mm` and,
+    /// per track, an offset drifting linearly along it by `drift_mm` a frame; and how many
+    /// draws gave a fit.
+    fn z_scores(seed: u64, noise_mm: f64, drift_mm: f64) -> (Vec<f64>, usize) {
         let omega = V3::new(20.0, -35.0, 180.0);
         let markers = on_sphere(&[
             [0.3, 0.2, 1.0],
@@ -427,91 +428,72 @@ mod tests {
             [0.7, 0.1, 0.4],
             [-0.2, -0.3, 0.9],
         ]);
-        let mut rng = hw_sim::Rng::new(17);
-        let trials = 300;
-        let (mut inside, mut beyond5, mut total) = (0, 0, 0);
-        for trial in 0..trials {
-            let phase = trial % 7;
-            let s = sightings(
-                omega,
-                &markers,
-                24,
-                0.04,
-                &|k, m| (k + 3 * m + phase) % 11 < 4 + m,
-                &mut rng,
-            );
-            let Some(fit) = fit(&s, V3::zeros(), usize::MAX) else {
-                continue;
-            };
-            for i in 0..3 {
-                let z = (fit.omega[i] - omega[i]) / fit.cov[(i, i)].sqrt();
-                total += 1;
-                inside += usize::from(z.abs() <= 1.0);
-                beyond5 += usize::from(z.abs() > 5.0);
-            }
-        }
-        let coverage = inside as f64 / total as f64;
-        assert!(
-            total >= 3 * trials * 9 / 10,
-            "fitted {} of {trials}",
-            total / 3
-        );
-        assert!((0.55..=0.85).contains(&coverage), "±1σ coverage {coverage}");
-        assert_eq!(beyond5, 0);
-    }
-
-    /// A marker's mislocation drifts along its track (it crosses the shading): each track's
-    /// sightings err together, by an offset that grows along the track. Clustered by frame
-    /// alone, the covariance misses that and puts errors far beyond 5σ; clustered by frame and
-    /// by track it must not.
-    #[test]
-    fn errors_shared_along_a_track_are_covered() {
-        let omega = V3::new(20.0, -35.0, 180.0);
-        let markers = on_sphere(&[
-            [0.3, 0.2, 1.0],
-            [-0.5, 0.4, 0.8],
-            [0.1, -0.6, 0.7],
-            [0.7, 0.1, 0.4],
-            [-0.2, -0.3, 0.9],
-        ]);
-        let mut rng = hw_sim::Rng::new(29);
-        let trials = 300;
-        let (mut inside, mut beyond5, mut total) = (0, 0, 0);
-        for trial in 0..trials {
+        let mut rng = hw_sim::Rng::new(seed);
+        let (mut z, mut fitted) = (Vec::new(), 0);
+        for trial in 0..TRIALS {
             let phase = trial % 7;
             let mut s = sightings(
                 omega,
                 &markers,
                 24,
-                0.01,
+                noise_mm,
                 &|k, m| (k + 3 * m + phase) % 11 < 4 + m,
                 &mut rng,
             );
-            // Per track, an offset drifting linearly along it: 0.005 mm a frame.
-            let drift: Vec<V3> = (0..markers.len())
-                .map(|_| V3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * 0.005)
-                .collect();
-            for x in s.iter_mut() {
-                x.rel_mm += drift[x.track.1] * x.frame as f64;
+            if drift_mm > 0.0 {
+                let drift: Vec<V3> = (0..markers.len())
+                    .map(|_| V3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * drift_mm)
+                    .collect();
+                for x in s.iter_mut() {
+                    x.rel_mm += drift[x.track.1] * x.frame as f64;
+                }
             }
             let Some(fit) = fit(&s, V3::zeros(), usize::MAX) else {
                 continue;
             };
-            for i in 0..3 {
-                let z = (fit.omega[i] - omega[i]) / fit.cov[(i, i)].sqrt();
-                total += 1;
-                inside += usize::from(z.abs() <= 1.0);
-                beyond5 += usize::from(z.abs() > 5.0);
-            }
+            fitted += 1;
+            z.extend((0..3).map(|i| (fit.omega[i] - omega[i]) / fit.cov[(i, i)].sqrt()));
         }
-        let coverage = inside as f64 / total as f64;
-        assert!(
-            total >= 3 * trials * 9 / 10,
-            "fitted {} of {trials}",
-            total / 3
-        );
+        (z, fitted)
+    }
+
+    const TRIALS: usize = 300;
+
+    fn share(z: &[f64], within: f64) -> f64 {
+        z.iter().filter(|x| x.abs() <= within).count() as f64 / z.len() as f64
+    }
+
+    fn beyond(z: &[f64], k: f64) -> usize {
+        z.iter().filter(|x| x.abs() > k).count()
+    }
+
+    /// With noise, ±1σ covers the true ω about as often as it should and nothing lands beyond
+    /// 5σ, on tracks that come and go (markers seen for 4–9 frames).
+    #[test]
+    fn the_covariance_covers_noisy_tracks() {
+        let (z, fitted) = z_scores(17, 0.04, 0.0);
+        assert!(fitted >= TRIALS * 9 / 10, "fitted {fitted} of {TRIALS}");
+        let coverage = share(&z, 1.0);
+        assert!((0.55..=0.85).contains(&coverage), "±1σ coverage {coverage}");
+        assert_eq!(beyond(&z, 5.0), 0);
+    }
+
+    /// A marker's mislocation drifts along its track (it crosses the shading): each track's
+    /// sightings err together, by an offset that grows along the track (0.005 mm a frame).
+    /// Clustered by frame alone, the covariance misses that and puts errors far beyond 5σ;
+    /// clustered by frame and by track it must not.
+    #[test]
+    fn errors_shared_along_a_track_are_covered() {
+        let (z, fitted) = z_scores(29, 0.01, 0.005);
+        assert!(fitted >= TRIALS * 9 / 10, "fitted {fitted} of {TRIALS}");
+        let coverage = share(&z, 1.0);
         assert!(coverage >= 0.55, "±1σ coverage {coverage}");
-        assert!(beyond5 <= total / 200, "{beyond5} of {total} beyond 5σ");
+        assert!(
+            beyond(&z, 5.0) <= z.len() / 200,
+            "{} of {} beyond 5σ",
+            beyond(&z, 5.0),
+            z.len()
+        );
     }
 
     /// All of a view's markers offset from the centre by the same 0.03 mm (a disc centre
