@@ -24,6 +24,11 @@ pub(super) fn x_pairs(obs: &[FrameObs], views: &[View]) -> Option<Vec<(f64, f64)
                 (0..2).filter_map(move |s| {
                     let near = f.position_mm[s].as_ref();
                     let (d, m) = (f.spheres[s][di].as_ref()?, f.spheres[s][mi].as_ref()?);
+                    // A disc the other sphere partly hid is off by more than its fit knows
+                    // (`overlap`): it is checked against these pairs, not part of them.
+                    if d.hidden_in_part.is_some() || m.hidden_in_part.is_some() {
+                        return None;
+                    }
                     Some((x(di, d.centre_px, near)?, x(mi, m.centre_px, near)?))
                 })
             })

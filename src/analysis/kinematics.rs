@@ -35,7 +35,23 @@ impl SideFit {
     ) -> SideFit {
         let g = [0.0, -gravity_mm_s2, 0.0];
         SideFit {
-            axes: [0, 1, 2].map(|i| fit_line(&series[i], t_ref, g[i], floor_mm[i])),
+            axes: [0, 1, 2].map(|i| fit_line(&series[i], None, t_ref, g[i], floor_mm[i])),
+        }
+    }
+
+    /// `fit_floored`, each point weighted (`weights[axis][point]`, 1 for a centre as good as
+    /// the phase's usual one; see `fit_line`).
+    pub fn fit_weighted(
+        series: &[Series; 3],
+        weights: &[Vec<f64>; 3],
+        t_ref: f64,
+        gravity_mm_s2: f64,
+        floor_mm: [f64; 3],
+    ) -> SideFit {
+        let g = [0.0, -gravity_mm_s2, 0.0];
+        SideFit {
+            axes: [0, 1, 2]
+                .map(|i| fit_line(&series[i], Some(&weights[i]), t_ref, g[i], floor_mm[i])),
         }
     }
 }

@@ -20,6 +20,7 @@ pub mod kinematics;
 pub mod lens;
 pub mod line_fit;
 pub mod markers;
+mod overlap;
 mod phases;
 pub mod report;
 pub mod rotation;
@@ -261,6 +262,7 @@ fn observations_once(
     if calibration.as_ref().is_some_and(|c| c.refined) {
         world::place(&mut obs, &views);
     }
+    let hidden_notes = overlap::widen_hidden(&mut obs, &views);
     let g = cfg.analysis.gravity_mm_s2;
     let contact_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
     let period = 1.0 / info.frame_rate_hz;
@@ -314,6 +316,7 @@ fn observations_once(
     // Final fits referenced at the impact time, so p0 and v are the state at impact.
     let fits = fit_all(&obs, &views, split, split, 0.5 * period, g);
     let mut warnings = input_warnings;
+    warnings.extend(hidden_notes);
 
     // Spins, one constant vector per sphere and flight phase.
     let method = cfg.analysis.rotation;
@@ -713,6 +716,7 @@ mod tests {
                         sigma_px: [0.02, 0.02],
                         diameter_px: 13.7,
                         markers: Vec::new(),
+                        hidden_in_part: None,
                     })
                 };
                 FrameObs {

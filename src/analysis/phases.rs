@@ -14,31 +14,50 @@ pub(super) fn series(obs: &[FrameObs], views: &[View], s: usize, frames: &[usize
     series_with(obs, views, s, frames, None)
 }
 
-/// `series`, and per axis the median of the centres' own σ, mm (each centre's σ in px over its
-/// view's scale; 0 where there is none): the scatter the positions have at least.
+/// `series`, per axis the median of the centres' own σ, mm (each centre's σ in px over its
+/// view's scale; 0 where there is none): the scatter the positions have at least; and each
+/// point's weight in the line fit: 1, but (median/σ)² for a centre the other sphere partly hid
+/// whose σ is larger than the median (`overlap`: its σ holds what its own fit cannot see).
+/// Why not every centre by its σ: the others' σ come from their own fits and vary with
+/// noise more than their errors do; the weights would then follow the noise.
 fn series_and_sigma(
     obs: &[FrameObs],
     views: &[View],
     s: usize,
     frames: &[usize],
-) -> ([Series; 3], [f64; 3]) {
-    let mut sigmas: [Vec<f64>; 3] = [Vec::new(), Vec::new(), Vec::new()];
-    let out = series_with(obs, views, s, frames, Some(&mut sigmas));
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(0.0)
+) -> ([Series; 3], [f64; 3], [Vec<f64>; 3]) {
+    let mut points: [Vec<(f64, bool)>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    let out = series_with(obs, views, s, frames, Some(&mut points));
+    let median = |v: &[(f64, bool)]| {
+        let mut finite: Vec<f64> = v.iter().map(|p| p.0).filter(|x| x.is_finite()).collect();
+        finite.sort_by(f64::total_cmp);
+        finite.get(finite.len() / 2).copied().unwrap_or(0.0)
     };
-    (out, [0, 1, 2].map(|i| median(&mut sigmas[i])))
+    let floor = [0, 1, 2].map(|i| median(&points[i]));
+    let weights = [0, 1, 2].map(|i| {
+        points[i]
+            .iter()
+            .map(|&(sigma, hidden)| {
+                if hidden && sigma.is_finite() && sigma > floor[i] && floor[i] > 0.0 {
+                    (floor[i] / sigma).powi(2)
+                } else {
+                    1.0
+                }
+            })
+            .collect()
+    });
+    (out, floor, weights)
 }
 
-/// `series`, pushing each centre's σ in mm onto `sigmas` per axis when asked (the growing
-/// phases and the leave-one-out refits, which call `series` for every frame, do not ask).
+/// `series`, pushing each point's centre σ in mm (NaN where there is none) and whether the
+/// other sphere partly hid it onto `sigmas` per axis when asked (the growing phases and the
+/// leave-one-out refits, which call `series` for every frame, do not ask).
 fn series_with(
     obs: &[FrameObs],
     views: &[View],
     s: usize,
     frames: &[usize],
-    mut sigmas: Option<&mut [Vec<f64>; 3]>,
+    mut sigmas: Option<&mut [Vec<(f64, bool)>; 3]>,
 ) -> [Series; 3] {
     let mut out: [Series; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let has_direct = views.iter().any(|v| v.kind == ViewKind::Direct);
@@ -59,9 +78,7 @@ fn series_with(
                 if let Some(sigmas) = sigmas.as_deref_mut() {
                     let sigma_mm =
                         m.sigma_px[0].hypot(m.sigma_px[1]) / 2f64.sqrt() / view.px_per_mm;
-                    if sigma_mm.is_finite() {
-                        sigmas[axis].push(sigma_mm);
-                    }
+                    sigmas[axis].push((sigma_mm, m.hidden_in_part.is_some()));
                 }
             }
         }
@@ -274,8 +291,8 @@ pub(super) fn fit_all(
     // The final fits' σ floored at the centres' own (`fit_line`); while a phase grows (above)
     // it is not, so which frames a phase holds does not change.
     let mut fits = [0, 1, 2, 3].map(|k| {
-        let (series, floor) = series_and_sigma(obs, views, k % 2, &ph[k]);
-        SideFit::fit_floored(&series, t_ref, g, floor)
+        let (series, floor, weights) = series_and_sigma(obs, views, k % 2, &ph[k]);
+        SideFit::fit_weighted(&series, &weights, t_ref, g, floor)
     });
     keep_common_axes(&mut fits);
     fits

@@ -118,6 +118,7 @@ pub fn read(
             sigma_px: [f64::NAN, f64::NAN],
             diameter_px: f64::NAN,
             markers: Vec::new(),
+            hidden_in_part: None,
         });
     }
     if frames.is_empty() {

@@ -426,6 +426,7 @@ mod tests {
                         sigma_px: [noise_px; 2],
                         diameter_px: 13.7,
                         markers: Vec::new(),
+                        hidden_in_part: None,
                     });
                 }
                 phases[k].push(obs.len());

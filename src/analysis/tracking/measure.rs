@@ -178,6 +178,7 @@ pub(super) fn measure_blob(
                 )
             })
         },
+        hidden_in_part: None,
     };
     Ok((m, f))
 }

@@ -37,6 +37,18 @@ pub struct Measurement {
     pub sigma_px: [f64; 2],
     pub diameter_px: f64,
     pub markers: Vec<MarkerObs>,
+    /// Fitted where the other sphere hides part of this disc in this view, and how; None for a
+    /// disc seen whole. Such a centre's error is more than its fit's σ says (`overlap`).
+    pub hidden_in_part: Option<HiddenInPart>,
+}
+
+/// How a disc the other sphere partly hides was measured (`Measurement::hidden_in_part`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HiddenInPart {
+    /// The circle through its part of a split silhouette's outline.
+    Outline,
+    /// The grey-level fit with the front disc hiding the back one (`profile_fit_behind`).
+    Crescent,
 }
 
 #[derive(Clone, Debug)]
@@ -575,6 +587,11 @@ impl Tracker {
                                     sigma_px: f.centre_sigma,
                                     diameter_px: 2.0 * f.radius,
                                     markers: dots,
+                                    hidden_in_part: Some(if behind.is_some() {
+                                        HiddenInPart::Crescent
+                                    } else {
+                                        HiddenInPart::Outline
+                                    }),
                                 });
                                 self.memory[vi].last[s] = Some(f.centre);
                                 self.memory[vi].history[s].push((t, f.centre));
