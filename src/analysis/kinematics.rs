@@ -59,6 +59,24 @@ impl SideFit {
 /// [a pre, b pre, a post, b post]
 pub type Fits = [SideFit; 4];
 
+/// The two spheres as the impact sees them: radii, mm, and, where the four phases' velocities
+/// are to be combined under momentum conservation, how (`momentum`).
+#[derive(Clone, Copy, Debug)]
+pub struct Bodies {
+    pub radii: [f64; 2],
+    pub momentum: Option<super::momentum::Momentum>,
+}
+
+impl From<[f64; 2]> for Bodies {
+    /// Radii alone: the phases' velocities as fitted.
+    fn from(radii: [f64; 2]) -> Bodies {
+        Bodies {
+            radii,
+            momentum: None,
+        }
+    }
+}
+
 /// Everything derived from the four fits.
 #[derive(Clone, Debug)]
 pub struct Derived {
@@ -230,10 +248,19 @@ pub fn collision(
 pub fn derive(
     fits: &Fits,
     spins: Option<&[V3; 4]>,
-    radii: [f64; 2],
+    bodies: impl Into<Bodies>,
     contact_mm: f64,
     g: f64,
 ) -> Result<Derived, ImpactError> {
+    let Bodies { radii, momentum } = bodies.into();
+    let conserved;
+    let fits = match &momentum {
+        Some(m) => {
+            conserved = super::momentum::conserve(fits, m);
+            &conserved
+        }
+        None => fits,
+    };
     let (pa, va) = pos_vel(&fits[0], 0.0, g);
     let (pb, vb) = pos_vel(&fits[1], 0.0, g);
     // Gravity acts on both alike: the separation is a straight line in time.
@@ -362,10 +389,11 @@ fn joint_contact(fits: &Fits, g: f64, contact_mm: f64, tau_start: f64) -> (f64, 
 pub fn uncertainties(
     fits: &Fits,
     spins: Option<&Spins>,
-    radii: [f64; 2],
+    radii: impl Into<Bodies>,
     contact_mm: f64,
     g: f64,
 ) -> Result<Derived, ImpactError> {
+    let radii: Bodies = radii.into();
     let omega = spins.map(|s| &s.omega);
     let base = derive(fits, omega, radii, contact_mm, g)?;
     let p = params(fits, omega);

@@ -20,6 +20,7 @@ pub mod kinematics;
 pub mod lens;
 pub mod line_fit;
 pub mod markers;
+mod momentum;
 mod overlap;
 mod phases;
 pub mod report;
@@ -40,7 +41,7 @@ mod world;
 use crate::config::Config;
 use crate::session::SessionError;
 use geometry::{View, ViewKind};
-use kinematics::{derive, ImpactError, SideFit, Spins, V3};
+use kinematics::{derive, Bodies, ImpactError, SideFit, Spins, V3};
 use report::*;
 use rotation::SpinFit;
 use tracking::{DotMasks, FrameObs};
@@ -317,6 +318,26 @@ fn observations_once(
     let fits = fit_all(&obs, &views, split, split, 0.5 * period, g);
     let mut warnings = input_warnings;
     warnings.extend(hidden_notes);
+    // Momentum across the impact (`momentum`): the four phases' velocities checked against it
+    // and, where they agree within 3σ, combined under it from here on.
+    let masses = [cfg.spheres.sphere(0).1, cfg.spheres.sphere(1).1];
+    let momentum_ok = masses.iter().all(|m| m.is_finite() && *m > 0.0);
+    let bodies = Bodies {
+        radii,
+        momentum: match momentum_ok
+            .then(|| momentum::check(&fits, masses))
+            .flatten()
+        {
+            Some((_, _, true)) => Some(momentum::Momentum::of(&fits, masses)),
+            Some((chi2, dof, false)) => {
+                warnings.push(format!(
+                    "the velocities before and after the impact do not conserve momentum (χ² = {chi2:.1} for {dof} degree(s) of freedom, beyond 3σ; masses from spheres.mass_g): they are reported as fitted, not combined"
+                ));
+                None
+            }
+            None => None,
+        },
+    };
 
     // Spins, one constant vector per sphere and flight phase.
     let method = cfg.analysis.rotation;
@@ -336,8 +357,8 @@ fn observations_once(
     // The velocities' and the normal's σ with the jackknife over frames (the propagated
     // covariance alone understated the predicted Δω's scatter about twofold on the bench).
     if let (Ok(d0), Ok(s0)) = (
-        derive(&fits, None, radii, contact_mm, g),
-        combined_uncertainties(&obs, &views, &ph, &fits, None, radii, contact_mm, split, g),
+        derive(&fits, None, bodies, contact_mm, g),
+        combined_uncertainties(&obs, &views, &ph, &fits, None, bodies, contact_mm, split, g),
     ) {
         let measured_3d = s0.velocities.iter().all(|v| v.iter().all(|x| *x > 0.0));
         for s in 0..2 {
@@ -400,13 +421,13 @@ fn observations_once(
     let d = derive(
         &fits,
         spins.as_ref().map(|s| &s.omega),
-        radii,
+        bodies,
         contact_mm,
         g,
     )
     .map_err(impact_err)?;
     let sd = combined_uncertainties(
-        &obs, &views, &ph, &fits, spin_fits, radii, contact_mm, split, g,
+        &obs, &views, &ph, &fits, spin_fits, bodies, contact_mm, split, g,
     )
     .map_err(impact_err)?;
     let t_c = split + d.tau_c;
@@ -820,7 +841,7 @@ mod tests {
                 &fits,
                 &omega,
                 [&still, &still, a_post, b_post],
-                [radius; 2],
+                [radius; 2].into(),
                 2.0 * radius,
                 g,
             )

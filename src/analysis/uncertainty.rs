@@ -3,7 +3,9 @@
 //! frame, so their spins move together).
 
 use super::geometry::View;
-use super::kinematics::{self, derive, uncertainties, Fits, ImpactError, SideFit, Spins, V3};
+use super::kinematics::{
+    self, derive, uncertainties, Bodies, Fits, ImpactError, SideFit, Spins, V3,
+};
 use super::phases::{keep_common_axes, series};
 use super::report::{Estimate, Vector};
 use super::rotation::SpinFit;
@@ -21,7 +23,7 @@ pub(super) fn combined_uncertainties(
     ph: &[Vec<usize>; 4],
     fits: &Fits,
     spins: Option<[&SpinFit; 4]>,
-    radii: [f64; 2],
+    radii: Bodies,
     contact_mm: f64,
     split: f64,
     g: f64,
@@ -83,7 +85,7 @@ pub(super) fn spin_variance(
     fits: &Fits,
     omega: &[V3; 4],
     measured: [&SpinFit; 4],
-    radii: [f64; 2],
+    radii: Bodies,
     contact_mm: f64,
     g: f64,
 ) -> Result<Vec<f64>, ImpactError> {
