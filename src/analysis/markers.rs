@@ -18,6 +18,10 @@ pub struct MarkerObs {
     /// Relative weight in rotation fits: cos²α, α the angle from the view axis. The lifted depth
     /// error grows as σ·tan α, so markers near the limb count less.
     pub weight: f64,
+    /// Unit vector from the sphere's centre towards the view that saw the dot (world): the
+    /// direction its depth was lifted along, so a fit can tell what an error in the image does
+    /// to the lifted point (`spin_tracks`).
+    pub toward: V3,
 }
 
 /// How far a dot's darkness summed over its pixels must stand above the noise, in σ of that
@@ -201,6 +205,7 @@ pub fn lift(
         centre_px: dot_px,
         rel_mm: view.u_axis * du_mm + view.v_axis * dv_mm + view.facing * depth,
         weight: (depth / radius_mm).powi(2),
+        toward: view.facing,
     })
 }
 
@@ -233,6 +238,7 @@ pub fn lift_at(
         centre_px: dot_px,
         rel_mm: across + toward * depth,
         weight: (depth / radius_mm).powi(2),
+        toward,
     })
 }
 

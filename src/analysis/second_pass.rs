@@ -106,7 +106,11 @@ pub(super) fn carry_orientation(
     let within = |a: f64, b: f64| -> Option<(Rotation3<f64>, f64)> {
         let fit = if a.max(b) <= t_c { before } else { after }?;
         let dt = b - a;
-        let sigma = fit.cov.trace().max(0.0).sqrt() * dt.abs();
+        let sigma = super::spin_tracks::cov_for_carry(fit)
+            .trace()
+            .max(0.0)
+            .sqrt()
+            * dt.abs();
         Some((Rotation3::from_scaled_axis(fit.omega * dt), sigma))
     };
     if t0 == t1 {

@@ -12,8 +12,9 @@ use super::tracking::FrameObs;
 use nalgebra::Rotation3;
 use std::collections::HashMap;
 
-/// Marker positions (relative to the centre, mm) per frame, keyed by (view, track id).
-type Tracked = Vec<(usize, HashMap<(usize, usize), (V3, f64)>)>;
+/// Marker positions (relative to the centre, mm), weights and the directions they were lifted
+/// along, per frame, keyed by (view, track id).
+type Tracked = Vec<(usize, HashMap<(usize, usize), (V3, f64, V3)>)>;
 
 /// Furthest frame gap used for a pair, and the largest rotation a pair may span.
 const MAX_GAP: usize = 4;
@@ -52,14 +53,17 @@ fn track(obs: &[FrameObs], frames: &[usize], s: usize, omega: V3, gate_mm: f64) 
                 d_used[di] = true;
                 active[ti].1 = dets[di].rel_mm;
                 active[ti].2 = f.time_s;
-                out[slot]
-                    .1
-                    .insert((vi, active[ti].0), (dets[di].rel_mm, dets[di].weight));
+                out[slot].1.insert(
+                    (vi, active[ti].0),
+                    (dets[di].rel_mm, dets[di].weight, dets[di].toward),
+                );
             }
             for (di, d) in dets.iter().enumerate() {
                 if !d_used[di] {
                     active.push((next_id, d.rel_mm, f.time_s));
-                    out[slot].1.insert((vi, next_id), (d.rel_mm, d.weight));
+                    out[slot]
+                        .1
+                        .insert((vi, next_id), (d.rel_mm, d.weight, d.toward));
                     next_id += 1;
                 }
             }
@@ -80,13 +84,14 @@ fn track(obs: &[FrameObs], frames: &[usize], s: usize, omega: V3, gate_mm: f64) 
 fn sightings(obs: &[FrameObs], tracked: &Tracked) -> Vec<Sighting> {
     let mut out = Vec::new();
     for (k, markers) in tracked {
-        for (key, (rel_mm, weight)) in markers {
+        for (key, (rel_mm, weight, toward)) in markers {
             out.push(Sighting {
                 frame: *k,
                 time_s: obs[*k].time_s,
                 track: *key,
                 rel_mm: *rel_mm,
                 weight: *weight,
+                toward: *toward,
             });
         }
     }
@@ -225,7 +230,8 @@ pub fn measure(
                 // (distinct from any frame and from the impulse's terms).
                 let first = frames.first().copied().unwrap_or(0);
                 let source = (usize::MAX - 64).saturating_sub(2 * first + s);
-                spin_tracks::fit(&sightings(obs, &tracked), start, source)
+                let lifted_source = spin_tracks::lifted_source(first, s);
+                spin_tracks::fit(&sightings(obs, &tracked), start, [source, lifted_source])
                     .or_else(|| rotation::fit_spin(&pairs))
             }
             RotationMethod::Thesis => rotation::fit_spin(&pairs),

@@ -8,15 +8,17 @@
 //! fix ω by themselves; this fit uses every such arc, of every view, at once.
 //!
 //! Model: sighting i of track j, seen in view v at time t, is
-//! q_i = R(ω·(t − t_ref)) p_j + b_v + noise, where b_v is a constant offset of all the view's
-//! markers from the centre they are measured against: a disc centre biased by the light, or
-//! marker centroids pushed along the shading's gradient. Without it, such an offset reads as a
-//! tilt of the spin axis (a marker's circle about a tilted axis is displaced in proportion to
-//! its height), and on side-lit and specular looks spins came out 2–2.5 rad/s off across the
-//! axis at 5–6σ, the same in both flight phases. For a given ω the places and offsets are
-//! linear least squares (each p_j the weighted mean of its sightings less b_v, rotated back),
-//! so only ω is searched (variable projection); its covariance is clustered by frame and by
-//! track, and comes with each frame's influence for the same uses as the pair fit's.
+//! q_i = R(ω·(t − t_ref)) p_j + J_i b_v + noise, where b_v is a constant offset of all the
+//! view's markers from the centre they are measured against in the image (a disc centre biased
+//! by the light, or marker centroids pushed along the shading's gradient) and a radius error of
+//! their lift, and J_i what that does to the lifted point (`offset_jacobian`). Without it, such
+//! an offset reads as a tilt of the spin axis (a marker's circle about a tilted axis is
+//! displaced in proportion to its height), and on side-lit and specular looks spins came out
+//! 2–2.5 rad/s off across the axis at 5–6σ, the same in both flight phases. For a given ω the
+//! places and offsets are linear least squares (each p_j the weighted mean of its sightings less
+//! J_i b_v, rotated back), so only ω is searched (variable projection); its covariance is
+//! clustered by frame and by track, and comes with each frame's influence for the same uses as
+//! the pair fit's.
 
 use super::rotation::{SpinFit, MIN_SPIN_FRAMES, V3};
 use nalgebra::{Matrix3, Rotation3};
@@ -31,6 +33,8 @@ pub struct Sighting {
     pub track: (usize, usize),
     pub rel_mm: V3,
     pub weight: f64,
+    /// Unit vector towards the view that saw it: the direction its depth was lifted along.
+    pub toward: V3,
 }
 
 /// A sighting this far from where the fit puts it was assigned to the wrong track (the same
@@ -43,19 +47,30 @@ const MARKER_OUTLIER_MM: f64 = 0.35;
 /// at 20σ; from three sightings on, an arc must also bend the way a rotation does.
 const MIN_TRACK_SIGHTINGS: usize = 3;
 
+/// Which offset each view's sightings carry in the fit (`offset_jacobian`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Offsets {
+    /// None at all.
+    None,
+    /// The same 3-D vector added to every lifted sighting.
+    Constant,
+    /// An offset in the image, carried through the lift.
+    Lifted,
+}
+
 struct Problem<'a> {
     /// Sightings grouped by track, each with τ = t − t_ref.
     tracks: Vec<Vec<(&'a Sighting, f64)>>,
-    /// Whether each view's sightings carry a constant offset, fitted too.
-    offsets: bool,
+    /// Whether each view's sightings carry an offset, fitted too, and of which model.
+    offsets: Offsets,
 }
 
 impl Problem<'_> {
     /// Residuals (3 per sighting, each scaled by √w) at ω, in track order.
     fn residuals(&self, omega: &V3, out: &mut Vec<f64>) {
         out.clear();
-        // Per track: its rotations, its place p̂ as if no offset, and M = Σ w Rᵀ / W, with which
-        // the place given an offset b is p̂ − M b.
+        // Per track: its rotations, each sighting's offset Jacobian J, its place p̂ as if no
+        // offset, and M = Σ w Rᵀ J / W, with which the place given an offset b is p̂ − M b.
         let mut per_track = Vec::with_capacity(self.tracks.len());
         // Per view: A b = c, the offset's normal equations with the places eliminated.
         let mut normal: BTreeMap<usize, (Matrix3<f64>, V3)> = BTreeMap::new();
@@ -64,24 +79,32 @@ impl Problem<'_> {
                 .iter()
                 .map(|(_, tau)| Rotation3::from_scaled_axis(omega * *tau))
                 .collect();
+            let jacs: Vec<Matrix3<f64>> = t
+                .iter()
+                .map(|(s, _)| match self.offsets {
+                    Offsets::Lifted => offset_jacobian(s),
+                    _ => Matrix3::identity(),
+                })
+                .collect();
             let (mut sum, mut m, mut wsum) = (V3::zeros(), Matrix3::zeros(), 0.0);
-            for ((s, _), r) in t.iter().zip(&rots) {
+            for (((s, _), r), j) in t.iter().zip(&rots).zip(&jacs) {
                 sum += s.weight * r.inverse_transform_vector(&s.rel_mm);
-                m += s.weight * r.matrix().transpose();
+                m += s.weight * r.matrix().transpose() * j;
                 wsum += s.weight;
             }
             let (p, m) = (sum / wsum, m / wsum);
-            if self.offsets {
+            if self.offsets != Offsets::None {
                 let view = t[0].0.track.0;
                 let (a, c) = normal
                     .entry(view)
                     .or_insert_with(|| (Matrix3::zeros(), V3::zeros()));
-                for ((s, _), r) in t.iter().zip(&rots) {
-                    *a += s.weight * (Matrix3::identity() - r.matrix() * m);
-                    *c += s.weight * (s.rel_mm - r * p);
+                for (((s, _), r), j) in t.iter().zip(&rots).zip(&jacs) {
+                    let e = j - r.matrix() * m;
+                    *a += s.weight * e.transpose() * e;
+                    *c += s.weight * e.transpose() * (s.rel_mm - r * p);
                 }
             }
-            per_track.push((rots, p, m));
+            per_track.push((rots, jacs, p, m));
         }
         // An offset along the spin axis is a place's own component: nothing fixes it, and the
         // small ridge sets it to zero.
@@ -93,14 +116,14 @@ impl Problem<'_> {
                 (v, b)
             })
             .collect();
-        for (t, (rots, p, m)) in self.tracks.iter().zip(&per_track) {
+        for (t, (rots, jacs, p, m)) in self.tracks.iter().zip(&per_track) {
             let b = offsets
                 .get(&t[0].0.track.0)
                 .copied()
                 .unwrap_or_else(V3::zeros);
             let place = p - m * b;
-            for ((s, _), r) in t.iter().zip(rots) {
-                let d = (s.rel_mm - r * place - b) * s.weight.sqrt();
+            for (((s, _), r), j) in t.iter().zip(rots).zip(jacs) {
+                let d = (s.rel_mm - r * place - j * b) * s.weight.sqrt();
                 out.extend_from_slice(d.as_slice());
             }
         }
@@ -198,26 +221,82 @@ impl Problem<'_> {
     }
 }
 
+/// How a view's offset b moves one lifted sighting: the dot is found in the image and its depth
+/// lifted from how far it lies from the disc centre, √(R² − ρ²). An offset b square to the line
+/// of sight t (a disc centre biased by the light, or dots pushed along the shading) moves the
+/// lifted point across by b and along t by −(a·b)/d, a the point's part across and d its
+/// depth; b's part along t moves nothing (the ridge in `residuals` sets it to zero). A constant
+/// 3-D offset (J = I) left the depth's part as a tilt of the axis: on the bench's side-lit and
+/// specular looks, fast spins about the view's axis came out 0.5–1° tilted, the same in both
+/// flight phases, at 5–10σ. (Dots found a little outward or inward scale every lifted point
+/// alike, which the places absorb, plus a depth change R²ε/d that for a spin about t is
+/// constant along each track, the places' own too.) Depth is held at least a fifth of R, where
+/// `markers` stops lifting anyway. With `toward` zero (no line of sight known) J is the
+/// identity: a plain 3-D offset.
+fn offset_jacobian(s: &Sighting) -> Matrix3<f64> {
+    let t = s.toward;
+    let radius = s.rel_mm.norm();
+    let depth = s.rel_mm.dot(&t).max(0.2 * radius);
+    let across = s.rel_mm - t * s.rel_mm.dot(&t);
+    Matrix3::identity() - t * t.transpose() - t * across.transpose() / depth
+}
+
+/// Indices in `frame_influence` for the lifted model's term (`fit`), one per phase and sphere:
+/// far from any frame, from the other model term's and from the impulse's.
+const LIFTED_SOURCES: std::ops::Range<usize> = (usize::MAX / 2 - (1 << 40))..(usize::MAX / 2 + 1);
+
+/// The lifted model's term's index for the phase starting at frame `first` of sphere `s`.
+pub fn lifted_source(first: usize, s: usize) -> usize {
+    (usize::MAX / 2).saturating_sub((2 * first + s).min(1 << 39))
+}
+
+/// `fit`'s covariance without the lifted model's term: for carrying dots from frame to frame
+/// (`second_pass`), where a tilt of the axis by the bias that term stands for (under a degree)
+/// moves a dot far less than the term's share of ω's σ, accumulated over the carry, says; with
+/// it, dots that should have been masked were not, and centres on defocused looks got worse.
+pub fn cov_for_carry(fit: &SpinFit) -> Matrix3<f64> {
+    fit.frame_influence
+        .iter()
+        .filter(|(k, _)| LIFTED_SOURCES.contains(k))
+        .fold(fit.cov, |c, (_, r)| c - r * r.transpose())
+}
+
 /// Constant ω fitted to whole marker tracks, started at `start` (the pair fit's ω, or the
 /// prediction the tracks were followed with). None where fewer than `MIN_SPIN_FRAMES` frames
 /// show a marker seen three times or more. Arcs too short to fix an axis show as a large σ.
 ///
-/// The fit is made with the views' offsets and without. Where a view's offset is real the two
-/// differ by the tilt it caused; where it is not, by the scatter the offsets add; but where
-/// short arcs let an offset trade against the rate, the two can land far apart, and then
-/// neither σ knows it. So the part of their difference beyond twice the scatter expected of
-/// it (the variance the offsets add, along the difference) is added to the covariance, as one
-/// more independent source of error with the index `source` in `frame_influence`. On 190
-/// varied-look recordings that took the estimates beyond 5σ from 26 to 17.
-pub fn fit(sightings: &[Sighting], start: V3, source: usize) -> Option<SpinFit> {
-    let mut with = fit_with(sightings, start, true)?;
-    if let Some(without) = fit_with(sightings, start, false) {
-        let d = with.omega - without.omega;
+/// The fit is made with a constant offset per view, and compared with two others:
+/// - without the offsets. Where a view's offset is real the two differ by the tilt it caused;
+///   where it is not, by the scatter the offsets add; but where short arcs let an offset trade
+///   against the rate, the two can land far apart, and then neither σ knows it. So the part of
+///   their difference beyond twice the scatter expected of it (the variance the offsets add,
+///   along the difference) is added to the covariance, as one more independent source of error
+///   with the index `sources[0]` in `frame_influence`. On 190 varied-look recordings that took
+///   the estimates beyond 5σ from 26 to 17.
+/// - with each view's offset taken in the image and carried through the lift
+///   (`offset_jacobian`), which a constant 3-D offset only approximates: that fit has no tilt
+///   from the offset, but an offset in the image and a tilt of the axis then look much alike,
+///   and its σ is 2–5× the constant model's across the axis. The part of its difference from
+///   the reported fit beyond twice the scatter expected of it is the constant model's bias
+///   showing, and is added to the covariance in the same way (index `sources[1]`; with the
+///   threshold at once the scatter, noise alone pushed ±1σ coverage to 85 % in the tests
+///   below). Reporting the lifted fit itself doubled the median spin error on the bench.
+pub fn fit(sightings: &[Sighting], start: V3, sources: [usize; 2]) -> Option<SpinFit> {
+    let mut with = fit_with(sightings, start, Offsets::Constant)?;
+    let base = with.clone();
+    for (other, factor, source) in [
+        (Offsets::None, 4.0, sources[0]),
+        (Offsets::Lifted, 4.0, sources[1]),
+    ] {
+        let Some(other) = fit_with(sightings, start, other) else {
+            continue;
+        };
+        let d = base.omega - other.omega;
         let n = d.norm();
         if n > 0.0 {
             let u = d / n;
-            let scatter = u.dot(&((with.cov - without.cov) * u)).abs();
-            let excess = n * n - 4.0 * scatter;
+            let scatter = u.dot(&((base.cov - other.cov) * u)).abs();
+            let excess = n * n - factor * scatter;
             if excess > 0.0 {
                 let r = u * excess.sqrt();
                 with.cov += r * r.transpose();
@@ -230,7 +309,7 @@ pub fn fit(sightings: &[Sighting], start: V3, source: usize) -> Option<SpinFit> 
 
 /// One fit, with or without each view's constant offset (`fit` makes both and reports the
 /// first, widened by how far the second lies from it).
-fn fit_with(sightings: &[Sighting], start: V3, offsets: bool) -> Option<SpinFit> {
+fn fit_with(sightings: &[Sighting], start: V3, offsets: Offsets) -> Option<SpinFit> {
     let mut kept: Vec<Sighting> = sightings.to_vec();
     // Drop the worst misfit while it is beyond the outlier bound (a marker followed onto its
     // neighbour), refitting each time; at most a tenth of the sightings.
@@ -266,7 +345,7 @@ fn fit_with(sightings: &[Sighting], start: V3, offsets: bool) -> Option<SpinFit>
     covariance(&problem, omega)
 }
 
-fn build(kept: &[Sighting], offsets: bool) -> Option<Problem<'_>> {
+fn build(kept: &[Sighting], offsets: Offsets) -> Option<Problem<'_>> {
     let mut by_track: BTreeMap<(usize, usize), Vec<&Sighting>> = BTreeMap::new();
     for s in kept {
         if s.weight > 0.0 && s.rel_mm.iter().all(|x| x.is_finite()) {
@@ -387,6 +466,7 @@ mod tests {
                         track: (0, m),
                         rel_mm: q + e,
                         weight: 1.0,
+                        toward: V3::z(),
                     });
                 }
             }
@@ -411,7 +491,8 @@ mod tests {
         let s = sightings(omega, &markers, 30, 0.0, &|k, m| k % 3 == m, &mut rng);
         let per_frame = |k: usize| s.iter().filter(|x| x.frame == k).count();
         assert!((0..30).all(|k| per_frame(k) <= 1));
-        let fit = fit(&s, V3::zeros(), usize::MAX).expect("three tracks over 30 frames");
+        let fit = fit(&s, V3::zeros(), [usize::MAX, lifted_source(0, 0)])
+            .expect("three tracks over 30 frames");
         assert!((fit.omega - omega).norm() < 1e-6, "{:?}", fit.omega);
     }
 
@@ -448,7 +529,7 @@ mod tests {
                     x.rel_mm += drift[x.track.1] * x.frame as f64;
                 }
             }
-            let Some(fit) = fit(&s, V3::zeros(), usize::MAX) else {
+            let Some(fit) = fit(&s, V3::zeros(), [usize::MAX, lifted_source(0, 0)]) else {
                 continue;
             };
             fitted += 1;
@@ -496,11 +577,26 @@ mod tests {
         );
     }
 
-    /// All of a view's markers offset from the centre by the same 0.03 mm (a disc centre
-    /// biased by the light): without the offset in the model the spin axis tilts and ω lands
-    /// many σ off across it; with it, within a few σ.
+    /// Each sighting found in the image `shift_mm` off (across the line of sight, +z) and a
+    /// factor `scale` further from the centre than it is, then lifted again onto the sphere as
+    /// `markers::lift` does: what a disc centre biased by the light, and dots found a little
+    /// outward, do to the lifted points.
+    fn found_off(s: &mut [Sighting], shift_mm: V3, scale: f64) {
+        for x in s.iter_mut() {
+            let radius = x.rel_mm.norm();
+            let across = V3::new(x.rel_mm.x, x.rel_mm.y, 0.0) * scale + shift_mm;
+            let depth = (radius * radius - across.norm_squared()).max(0.0).sqrt();
+            x.rel_mm = across + V3::z() * depth;
+        }
+    }
+
+    /// All of a view's markers found 0.03 mm off the centre in the image and 2 % further out
+    /// (a disc centre biased by the light, dots pushed outward along the shading), then lifted:
+    /// without the offset in the model the spin axis tilts and ω lands many σ off across it;
+    /// with a constant 3-D offset still beyond 5σ (the lift turns a shift in the image into
+    /// depths that differ from dot to dot); with the lift's own Jacobian, within a few σ.
     #[test]
-    fn a_constant_offset_of_the_markers_does_not_tilt_the_axis() {
+    fn markers_found_off_centre_in_the_image_do_not_tilt_the_axis() {
         let omega = V3::new(7.0, -3.0, 185.0);
         let markers = on_sphere(&[
             [0.3, 0.2, 1.0],
@@ -519,22 +615,42 @@ mod tests {
             &|k, m| (k + 2 * m) % 9 < 6,
             &mut rng,
         );
-        for x in s.iter_mut() {
-            x.rel_mm += V3::new(0.03, -0.02, 0.0);
-        }
+        found_off(&mut s, V3::new(0.03, -0.02, 0.0), 1.02);
         let worst_z = |f: &SpinFit| {
             (0..3)
                 .map(|i| ((f.omega[i] - omega[i]) / f.cov[(i, i)].sqrt()).abs())
                 .fold(0.0, f64::max)
         };
-        let without = fit_with(&s, V3::zeros(), false).expect("enough tracks");
-        let with = fit(&s, V3::zeros(), usize::MAX).expect("enough tracks");
+        let without = fit_with(&s, V3::zeros(), Offsets::None).expect("enough tracks");
+        let with = fit(&s, V3::zeros(), [usize::MAX, lifted_source(0, 0)]).expect("enough tracks");
         assert!(
             worst_z(&without) > 5.0,
             "without offsets: {}",
             worst_z(&without)
         );
-        assert!(worst_z(&with) < 3.0, "with offsets: {:?}", with.omega);
+        // A constant 3-D offset alone (J = I) is no cure; the lifted model's disagreement with
+        // it, added to the reported covariance, keeps the reported ω within a few σ.
+        let constant = fit_with(&s, V3::zeros(), Offsets::Constant).expect("enough tracks");
+        assert!(
+            worst_z(&constant) > 5.0,
+            "constant 3-D offset: {}",
+            worst_z(&constant)
+        );
+        let lifted = fit_with(&s, V3::zeros(), Offsets::Lifted).expect("enough tracks");
+        assert!(worst_z(&lifted) < 3.0, "lifted offsets: {:?}", lifted.omega);
+        assert!(worst_z(&with) < 3.0, "reported: {:?}", with.omega);
+        // The dots' carry leaves the lifted model's term out, and only that.
+        let carry = cov_for_carry(&with);
+        let lifted_terms: Vec<&V3> = with
+            .frame_influence
+            .iter()
+            .filter(|(k, _)| *k == lifted_source(0, 0))
+            .map(|(_, r)| r)
+            .collect();
+        assert_eq!(lifted_terms.len(), 1, "the lifted model's term is there");
+        let back = carry + lifted_terms[0] * lifted_terms[0].transpose();
+        assert!((back - with.cov).norm() <= 1e-12 * with.cov.norm());
+        assert!(carry.trace() < with.cov.trace());
         // The reported σ also covers the two models' disagreement, whichever is right.
         for i in 0..3 {
             let apart = (with.omega[i] - without.omega[i]).abs();

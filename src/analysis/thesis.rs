@@ -49,6 +49,7 @@ pub fn rounded(obs: &[FrameObs], views: &[View], cfg: &Config) -> Vec<FrameObs> 
                                 centre_px: p,
                                 rel_mm: view.u_axis * du + view.v_axis * dv + view.facing * depth,
                                 weight: 1.0,
+                                toward: view.facing,
                             })
                         })
                         .collect();
