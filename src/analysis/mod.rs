@@ -342,6 +342,21 @@ fn observations_once(
     // Spins, one constant vector per sphere and flight phase.
     let method = cfg.analysis.rotation;
     let ph = flight_phases(&obs, &views, split, 0.5 * period, g);
+    // Each phase's x velocity from the direct view against the mirror's (`x_views_disagree`):
+    // where they differ beyond twice their σ, the excess is one more error of that velocity.
+    let x_views: [Option<f64>; 4] = [0, 1, 2, 3].map(|k| {
+        let (d, sigma, excess) = phases::x_views_disagree(&obs, &views, k % 2, &ph[k], split)?;
+        // Said beyond 3σ, as the momentum check: with honest σ one phase in twenty lands
+        // beyond 2σ by chance, and adds a sliver to its σ without a word.
+        if d.abs() > 3.0 * sigma {
+            warnings.push(format!(
+            "sphere {} {} the impact: its x velocity from the direct view and from the mirror differ by {d:+.1} ± {sigma:.1} mm/s; {excess:.1} mm/s added to its σ, and carried into everything derived from it",
+            ["a", "b"][k % 2],
+            ["before", "after"][k / 2],
+            ));
+        }
+        Some(excess)
+    });
     if let Some(c) = calibration.as_mut() {
         warnings.extend(calibration::check_geometry(c, &obs, &views, &ph, g));
     }
@@ -358,7 +373,9 @@ fn observations_once(
     // covariance alone understated the predicted Δω's scatter about twofold on the bench).
     if let (Ok(d0), Ok(s0)) = (
         derive(&fits, None, bodies, contact_mm, g),
-        combined_uncertainties(&obs, &views, &ph, &fits, None, bodies, contact_mm, split, g),
+        combined_uncertainties(
+            &obs, &views, &ph, &fits, None, bodies, &x_views, contact_mm, split, g,
+        ),
     ) {
         let measured_3d = s0.velocities.iter().all(|v| v.iter().all(|x| *x > 0.0));
         for s in 0..2 {
@@ -427,7 +444,7 @@ fn observations_once(
     )
     .map_err(impact_err)?;
     let sd = combined_uncertainties(
-        &obs, &views, &ph, &fits, spin_fits, bodies, contact_mm, split, g,
+        &obs, &views, &ph, &fits, spin_fits, bodies, &x_views, contact_mm, split, g,
     )
     .map_err(impact_err)?;
     let t_c = split + d.tau_c;

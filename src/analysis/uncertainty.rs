@@ -15,7 +15,10 @@ use super::tracking::FrameObs;
 /// frame's error is independent and alike; a frame that pulls a fit (a centre biased by the
 /// neighbouring sphere just before contact, say) breaks that. So the kinematic variance is the
 /// mean of the propagated one and a leave-one-frame-out jackknife of the whole derivation; the
-/// spin part is added from the spin fits' per-frame influences (`spin_variance`).
+/// spin part is added from the spin fits' per-frame influences (`spin_variance`), and where a
+/// phase's x velocity differs between the views beyond its σ (`x_views`, mm/s per phase), that
+/// excess moved through the derivation, in full: neither the fit nor the jackknife over frames
+/// sees a bias the frames share.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn combined_uncertainties(
     obs: &[FrameObs],
@@ -24,6 +27,7 @@ pub(super) fn combined_uncertainties(
     fits: &Fits,
     spins: Option<[&SpinFit; 4]>,
     radii: Bodies,
+    x_views: &[Option<f64>; 4],
     contact_mm: f64,
     split: f64,
     g: f64,
@@ -58,6 +62,22 @@ pub(super) fn combined_uncertainties(
         }
         _ => vec![0.0; vk.len()],
     };
+    // The views' disagreement on each phase's x velocity, moved through the derivation.
+    let base = derive(fits, omega, radii, contact_mm, g)?.to_vec();
+    let mut view_var = vec![0.0; vk.len()];
+    for (k, excess) in x_views.iter().enumerate() {
+        let Some(excess) = excess else { continue };
+        let mut moved = *fits;
+        let Some(line) = moved[k].axes[0].as_mut() else {
+            continue;
+        };
+        line.v += excess;
+        if let Ok(d) = derive(&moved, omega, radii, contact_mm, g) {
+            for (v, (a, b)) in view_var.iter_mut().zip(d.to_vec().iter().zip(&base)) {
+                *v += (a - b).powi(2);
+            }
+        }
+    }
     let n = reps.len() as f64;
     let mut out = vk.clone();
     for i in 0..vk.len() {
@@ -72,7 +92,7 @@ pub(super) fn combined_uncertainties(
             Some(jk) => (vk[i].powi(2) + jk.powi(2)) / 2.0,
             None => vk[i].powi(2),
         };
-        out[i] = (kinematic + spin_var[i]).sqrt();
+        out[i] = (kinematic + spin_var[i] + view_var[i]).sqrt();
     }
     Ok(kinematics::Derived::from_vec(&kin, &out))
 }
