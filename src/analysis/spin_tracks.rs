@@ -61,6 +61,9 @@ enum Offsets {
 struct Problem<'a> {
     /// Sightings grouped by track, each with τ = t − t_ref.
     tracks: Vec<Vec<(&'a Sighting, f64)>>,
+    /// Per track, each sighting's offset Jacobian (`offset_jacobian` for the lifted model, the
+    /// identity otherwise): fixed by the sightings, so made once, not on every evaluation.
+    jacs: Vec<Vec<Matrix3<f64>>>,
     /// Whether each view's sightings carry an offset, fitted too, and of which model.
     offsets: Offsets,
 }
@@ -74,20 +77,13 @@ impl Problem<'_> {
         let mut per_track = Vec::with_capacity(self.tracks.len());
         // Per view: A b = c, the offset's normal equations with the places eliminated.
         let mut normal: BTreeMap<usize, (Matrix3<f64>, V3)> = BTreeMap::new();
-        for t in &self.tracks {
+        for (t, jacs) in self.tracks.iter().zip(&self.jacs) {
             let rots: Vec<Rotation3<f64>> = t
                 .iter()
                 .map(|(_, tau)| Rotation3::from_scaled_axis(omega * *tau))
                 .collect();
-            let jacs: Vec<Matrix3<f64>> = t
-                .iter()
-                .map(|(s, _)| match self.offsets {
-                    Offsets::Lifted => offset_jacobian(s),
-                    _ => Matrix3::identity(),
-                })
-                .collect();
             let (mut sum, mut m, mut wsum) = (V3::zeros(), Matrix3::zeros(), 0.0);
-            for (((s, _), r), j) in t.iter().zip(&rots).zip(&jacs) {
+            for (((s, _), r), j) in t.iter().zip(&rots).zip(jacs) {
                 sum += s.weight * r.inverse_transform_vector(&s.rel_mm);
                 m += s.weight * r.matrix().transpose() * j;
                 wsum += s.weight;
@@ -98,7 +94,7 @@ impl Problem<'_> {
                 let (a, c) = normal
                     .entry(view)
                     .or_insert_with(|| (Matrix3::zeros(), V3::zeros()));
-                for (((s, _), r), j) in t.iter().zip(&rots).zip(&jacs) {
+                for (((s, _), r), j) in t.iter().zip(&rots).zip(jacs) {
                     let e = j - r.matrix() * m;
                     *a += s.weight * e.transpose() * e;
                     *c += s.weight * e.transpose() * (s.rel_mm - r * p);
@@ -122,7 +118,7 @@ impl Problem<'_> {
                 .copied()
                 .unwrap_or_else(V3::zeros);
             let place = p - m * b;
-            for (((s, _), r), j) in t.iter().zip(rots).zip(jacs) {
+            for (((s, _), r), j) in t.iter().zip(rots).zip(jacs.iter()) {
                 let d = (s.rel_mm - r * place - j * b) * s.weight.sqrt();
                 out.extend_from_slice(d.as_slice());
             }
@@ -359,12 +355,25 @@ fn build(kept: &[Sighting], offsets: Offsets) -> Option<Problem<'_>> {
         return None;
     }
     let t_ref = all.iter().map(|s| s.weight * s.time_s).sum::<f64>() / wsum;
+    let tracks: Vec<Vec<(&Sighting, f64)>> = by_track
+        .into_values()
+        .map(|v| v.into_iter().map(|s| (s, s.time_s - t_ref)).collect())
+        .collect();
+    let jacs = tracks
+        .iter()
+        .map(|t| {
+            t.iter()
+                .map(|(s, _)| match offsets {
+                    Offsets::Lifted => offset_jacobian(s),
+                    _ => Matrix3::identity(),
+                })
+                .collect()
+        })
+        .collect();
     Some(Problem {
         offsets,
-        tracks: by_track
-            .into_values()
-            .map(|v| v.into_iter().map(|s| (s, s.time_s - t_ref)).collect())
-            .collect(),
+        tracks,
+        jacs,
     })
 }
 
