@@ -9,15 +9,20 @@ mod common;
 
 use std::path::Path;
 
+/// Runs one experiment in `dir` with the config `toml` and returns (report, truth).
+fn run_config(dir: &Path, toml: &str) -> (serde_json::Value, serde_json::Value) {
+    std::fs::write(dir.join("sim.toml"), toml).unwrap();
+    let report = common::run_json(dir, &["run", "--config", "sim.toml", "--json"]);
+    let truth = common::read_json(&common::first_session(dir).join("truth.json"));
+    (report, truth)
+}
+
 /// Runs one experiment with `sim.look_family = family` and returns (report, truth).
 fn run(dir: &Path, family: &str, seed: u64) -> (serde_json::Value, serde_json::Value) {
-    std::fs::write(
-        dir.join("look.toml"),
-        format!("[sim]\nseed = {seed}\nlook_family = \"{family}\"\n"),
-    )
-    .unwrap();
-    let report = common::run_json(dir, &["run", "--config", "look.toml", "--json"]);
-    let truth = common::read_json(&common::first_session(dir).join("truth.json"));
+    let (report, truth) = run_config(
+        dir,
+        &format!("[sim]\nseed = {seed}\nlook_family = \"{family}\"\n"),
+    );
     assert_eq!(
         truth["look"]["family"], family,
         "the look was drawn as asked"
@@ -86,13 +91,10 @@ fn every_kind_of_rig_gives_e_within_its_uncertainty() {
 #[test]
 fn spheres_that_pass_in_front_of_each_other_keep_their_names() {
     let t = tempfile::tempdir().unwrap();
-    std::fs::write(
-        t.path().join("z.toml"),
+    let (report, truth) = run_config(
+        t.path(),
         "[sim]\nseed = 11\nimpact_offset = 0.1\nimpact_offset_z = 0.95\n",
-    )
-    .unwrap();
-    let report = common::run_json(t.path(), &["run", "--config", "z.toml", "--json"]);
-    let truth = common::read_json(&common::first_session(t.path()).join("truth.json"));
+    );
     // Names swapped after the impact would put e far off (the post-impact velocities exchanged);
     // ψ1 here is 3.5, with σ 0.02–0.04 from run to run (the simulated release follows the
     // relay's wall-clock timing), so its absolute bound is wider: 0.05 failed at 2.4σ in CI.
@@ -189,13 +191,10 @@ fn spheres_in_front_of_tube_ends_and_a_ruler_are_measured_where_they_are() {
 #[test]
 fn discs_the_other_sphere_partly_hides_carry_their_error_in_their_sigma() {
     let t = tempfile::tempdir().unwrap();
-    std::fs::write(
-        t.path().join("hid.toml"),
+    let (report, truth) = run_config(
+        t.path(),
         "[sim]\nseed = 3124\nlook_family = \"varied\"\ntube_angle_deg = 50.0\nimpact_offset = 0.85\nimpact_offset_z = 0.05\n",
-    )
-    .unwrap();
-    let report = common::run_json(t.path(), &["run", "--config", "hid.toml", "--json"]);
-    let truth = common::read_json(&common::first_session(t.path()).join("truth.json"));
+    );
     let frames = truth["frames"].as_array().expect("truth frames");
     let xy = |v: &serde_json::Value| [v[0].as_f64().unwrap(), v[1].as_f64().unwrap()];
     let mut hidden = 0;
@@ -238,13 +237,10 @@ fn discs_the_other_sphere_partly_hides_carry_their_error_in_their_sigma() {
 #[test]
 fn a_phase_the_mirror_hardly_sees_takes_its_velocity_from_momentum() {
     let t = tempfile::tempdir().unwrap();
-    std::fs::write(
-        t.path().join("mom.toml"),
+    let (report, truth) = run_config(
+        t.path(),
         "[sim]\nseed = 1104\nlook_family = \"varied\"\nmaterial = \"teflon\"\ntube_angle_deg = 10.0\nimpact_offset = 0.85\nimpact_offset_z = 0.05\npace = \"free_run\"\n[recording]\nframes = 400\npre_trigger_frames = 10\n",
-    )
-    .unwrap();
-    let report = common::run_json(t.path(), &["run", "--config", "mom.toml", "--json"]);
-    let truth = common::read_json(&common::first_session(t.path()).join("truth.json"));
+    );
     let v = &report["spheres"]["a"]["velocity_post_mm_s"];
     let z = v["value"][2].as_f64().expect("a post vz");
     let sigma_z = v["uncertainty"][2].as_f64().expect("a post σ vz");
@@ -276,13 +272,10 @@ fn a_velocity_the_two_views_disagree_on_carries_that_in_its_sigma() {
     let mut worst: f64 = 0.0;
     for _ in 0..4 {
         let t = tempfile::tempdir().unwrap();
-        std::fs::write(
-            t.path().join("blur.toml"),
+        let (report, truth) = run_config(
+            t.path(),
             "[sim]\nseed = 4112\nlook_family = \"varied\"\nmaterial = \"teflon\"\ntube_angle_deg = 30.0\nimpact_offset = 0.3\nimpact_offset_z = 0.05\npace = \"free_run\"\n[recording]\nframes = 400\npre_trigger_frames = 10\n",
-        )
-        .unwrap();
-        let report = common::run_json(t.path(), &["run", "--config", "blur.toml", "--json"]);
-        let truth = common::read_json(&common::first_session(t.path()).join("truth.json"));
+        );
         for s in ["a", "b"] {
             for (phase, key) in [("pre", "velocity_pre_mm_s"), ("post", "velocity_post_mm_s")] {
                 let v = &report["spheres"][s][key];

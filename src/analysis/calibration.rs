@@ -9,31 +9,30 @@ use super::tracking::FrameObs;
 
 /// Pairs (direct x, mirror x) in mm of every sphere measured in both views of a frame.
 pub(super) fn x_pairs(obs: &[FrameObs], views: &[View]) -> Option<Vec<(f64, f64)>> {
-    let di = views.iter().position(|v| v.kind == ViewKind::Direct)?;
-    let mi = views.iter().position(|v| v.kind == ViewKind::Mirror)?;
-    let x = |vi: usize, px: [f64; 2], near: Option<&super::geometry::V3>| {
-        views[vi]
-            .unproject(px, near)
-            .iter()
-            .find(|(a, _)| *a == 0)
-            .map(|(_, x)| *x)
-    };
+    views.iter().position(|v| v.kind == ViewKind::Direct)?;
+    views.iter().position(|v| v.kind == ViewKind::Mirror)?;
     Some(
         obs.iter()
-            .flat_map(|f| {
-                (0..2).filter_map(move |s| {
-                    let near = f.position_mm[s].as_ref();
-                    let (d, m) = (f.spheres[s][di].as_ref()?, f.spheres[s][mi].as_ref()?);
-                    // A disc the other sphere partly hid is off by more than its fit knows
-                    // (`overlap`): it is checked against these pairs, not part of them.
-                    if d.hidden_in_part.is_some() || m.hidden_in_part.is_some() {
-                        return None;
-                    }
-                    Some((x(di, d.centre_px, near)?, x(mi, m.centre_px, near)?))
-                })
-            })
+            .flat_map(|f| (0..2).filter_map(move |s| x_pair(f, views, s)))
             .collect(),
     )
+}
+
+/// Sphere `s`'s (direct x, mirror x), mm, in frame `f`; None where either view missed it, or
+/// where the other sphere partly hid its disc in either: such a disc is off by more than its
+/// fit knows (`overlap`), and is checked against these pairs, not part of them.
+pub(super) fn x_pair(f: &FrameObs, views: &[View], s: usize) -> Option<(f64, f64)> {
+    let di = views.iter().position(|v| v.kind == ViewKind::Direct)?;
+    let mi = views.iter().position(|v| v.kind == ViewKind::Mirror)?;
+    let near = f.position_mm[s].as_ref();
+    let (d, m) = (f.spheres[s][di].as_ref()?, f.spheres[s][mi].as_ref()?);
+    if d.hidden_in_part.is_some() || m.hidden_in_part.is_some() {
+        return None;
+    }
+    Some((
+        views[di].x_mm(d.centre_px, near)?,
+        views[mi].x_mm(m.centre_px, near)?,
+    ))
 }
 
 /// A least-squares line y = slope·x + intercept, and the extent of x it was fitted over.

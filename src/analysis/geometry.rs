@@ -264,6 +264,15 @@ impl View {
         self.axes.map(|a| (a, p[a]))
     }
 
+    /// World x of an image point, mm, as `unproject` gives it (both views see x); None for a
+    /// view that does not measure x.
+    pub fn x_mm(&self, px: [f64; 2], near: Option<&V3>) -> Option<f64> {
+        self.unproject(px, near)
+            .iter()
+            .find(|(axis, _)| *axis == 0)
+            .map(|(_, x)| *x)
+    }
+
     fn unproject_aligned(&self, px: [f64; 2]) -> [(usize, f64); 2] {
         let axis = |a: &V3| -> (usize, f64) {
             let i = a.iamax();

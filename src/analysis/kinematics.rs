@@ -33,10 +33,7 @@ impl SideFit {
         gravity_mm_s2: f64,
         floor_mm: [f64; 3],
     ) -> SideFit {
-        let g = [0.0, -gravity_mm_s2, 0.0];
-        SideFit {
-            axes: [0, 1, 2].map(|i| fit_line(&series[i], None, t_ref, g[i], floor_mm[i])),
-        }
+        Self::fit_each(series, None, t_ref, gravity_mm_s2, floor_mm)
     }
 
     /// `fit_floored`, each point weighted (`weights[axis][point]`, 1 for a centre as good as
@@ -48,10 +45,23 @@ impl SideFit {
         gravity_mm_s2: f64,
         floor_mm: [f64; 3],
     ) -> SideFit {
+        Self::fit_each(series, Some(weights), t_ref, gravity_mm_s2, floor_mm)
+    }
+
+    /// One `fit_line` per axis, gravity along −y.
+    fn fit_each(
+        series: &[Series; 3],
+        weights: Option<&[Vec<f64>; 3]>,
+        t_ref: f64,
+        gravity_mm_s2: f64,
+        floor_mm: [f64; 3],
+    ) -> SideFit {
         let g = [0.0, -gravity_mm_s2, 0.0];
         SideFit {
-            axes: [0, 1, 2]
-                .map(|i| fit_line(&series[i], Some(&weights[i]), t_ref, g[i], floor_mm[i])),
+            axes: [0, 1, 2].map(|i| {
+                let w = weights.map(|w| w[i].as_slice());
+                fit_line(&series[i], w, t_ref, g[i], floor_mm[i])
+            }),
         }
     }
 }
@@ -389,13 +399,13 @@ fn joint_contact(fits: &Fits, g: f64, contact_mm: f64, tau_start: f64) -> (f64, 
 pub fn uncertainties(
     fits: &Fits,
     spins: Option<&Spins>,
-    radii: impl Into<Bodies>,
+    bodies: impl Into<Bodies>,
     contact_mm: f64,
     g: f64,
 ) -> Result<Derived, ImpactError> {
-    let radii: Bodies = radii.into();
+    let bodies: Bodies = bodies.into();
     let omega = spins.map(|s| &s.omega);
-    let base = derive(fits, omega, radii, contact_mm, g)?;
+    let base = derive(fits, omega, bodies, contact_mm, g)?;
     let p = params(fits, omega);
     let mut cov = DMatrix::<f64>::zeros(p.len(), p.len());
     let mut k = 0;
@@ -423,7 +433,7 @@ pub fn uncertainties(
             let mut q = p.clone();
             q[j] += delta;
             let (f, w) = with_params(fits, omega, &q);
-            derive(&f, w.as_ref(), radii, contact_mm, g)
+            derive(&f, w.as_ref(), bodies, contact_mm, g)
                 .ok()
                 .map(|d| d.to_vec())
                 .filter(|v| v.len() == y0.len())

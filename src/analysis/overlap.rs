@@ -58,15 +58,10 @@ pub(super) fn widen_hidden(obs: &mut [FrameObs], views: &[View]) -> Vec<String> 
                         continue;
                     };
                     let near = f.position_mm[s].as_ref();
-                    let x_of = |v: &View, px: [f64; 2]| {
-                        v.unproject(px, near)
-                            .iter()
-                            .find(|(axis, _)| *axis == 0)
-                            .map(|(_, x)| *x)
-                    };
-                    if let (Some(xh), Some(xd)) =
-                        (x_of(view, m.centre_px), x_of(&views[direct], d.centre_px))
-                    {
+                    if let (Some(xh), Some(xd)) = (
+                        view.x_mm(m.centre_px, near),
+                        views[direct].x_mm(d.centre_px, near),
+                    ) {
                         // In the hidden view's pixels; what the direct view's own σ explains
                         // is left in (it is small beside what this measures).
                         sum_sq += ((xh - xd) * view.px_per_mm).powi(2);

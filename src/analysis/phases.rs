@@ -107,24 +107,9 @@ pub(super) fn x_views_disagree(
 ) -> Option<(f64, f64, f64)> {
     let mut x: [Series; 2] = [Vec::new(), Vec::new()];
     for f in frames.iter().map(|&k| &obs[k]) {
-        let whole = |want_direct: bool| {
-            views.iter().zip(&f.spheres[s]).find_map(|(v, m)| {
-                let m = m.as_ref()?;
-                ((v.kind == ViewKind::Direct) == want_direct && m.hidden_in_part.is_none())
-                    .then_some((v, m))
-            })
-        };
-        let (Some(direct), Some(other)) = (whole(true), whole(false)) else {
-            continue;
-        };
-        for (slot, (view, m)) in [direct, other].into_iter().enumerate() {
-            if let Some((_, val)) = view
-                .unproject(m.centre_px, f.position_mm[s].as_ref())
-                .into_iter()
-                .find(|(axis, _)| *axis == 0)
-            {
-                x[slot].push((f.time_s, val));
-            }
+        if let Some((direct, mirror)) = super::calibration::x_pair(f, views, s) {
+            x[0].push((f.time_s, direct));
+            x[1].push((f.time_s, mirror));
         }
     }
     if x.iter().any(|series| series.len() < MIN_SHARED_X_FRAMES) {

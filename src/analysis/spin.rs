@@ -226,12 +226,10 @@ pub fn measure(
         let fit = match method {
             RotationMethod::Kabsch => {
                 let start = rotation::ls_omega_of(&pairs).unwrap_or(omega);
-                // Each phase of each sphere its own source for the model term's influence
-                // (distinct from any frame and from the impulse's terms).
+                // Each phase of each sphere its own sources for the model terms' influence.
                 let first = frames.first().copied().unwrap_or(0);
-                let source = (usize::MAX - 64).saturating_sub(2 * first + s);
-                let lifted_source = spin_tracks::lifted_source(first, s);
-                spin_tracks::fit(&sightings(obs, &tracked), start, [source, lifted_source])
+                let sources = spin_tracks::model_sources(first, s);
+                spin_tracks::fit(&sightings(obs, &tracked), start, sources)
                     .or_else(|| rotation::fit_spin(&pairs))
             }
             RotationMethod::Thesis => rotation::fit_spin(&pairs),

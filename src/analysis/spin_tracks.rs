@@ -241,9 +241,14 @@ fn offset_jacobian(s: &Sighting) -> Matrix3<f64> {
 /// far from any frame, from the other model term's and from the impulse's.
 const LIFTED_SOURCES: std::ops::Range<usize> = (usize::MAX / 2 - (1 << 40))..(usize::MAX / 2 + 1);
 
-/// The lifted model's term's index for the phase starting at frame `first` of sphere `s`.
-pub fn lifted_source(first: usize, s: usize) -> usize {
-    (usize::MAX / 2).saturating_sub((2 * first + s).min(1 << 39))
+/// `fit`'s `sources` for the phase starting at frame `first` of sphere `s`: the without-offsets
+/// term's index and the lifted model's, each distinct from any frame, from the impulse's terms
+/// and from every other phase's and sphere's.
+pub fn model_sources(first: usize, s: usize) -> [usize; 2] {
+    [
+        (usize::MAX - 64).saturating_sub(2 * first + s),
+        (usize::MAX / 2).saturating_sub((2 * first + s).min(1 << 39)),
+    ]
 }
 
 /// `fit`'s covariance without the lifted model's term: for carrying dots from frame to frame
@@ -500,8 +505,7 @@ mod tests {
         let s = sightings(omega, &markers, 30, 0.0, &|k, m| k % 3 == m, &mut rng);
         let per_frame = |k: usize| s.iter().filter(|x| x.frame == k).count();
         assert!((0..30).all(|k| per_frame(k) <= 1));
-        let fit = fit(&s, V3::zeros(), [usize::MAX, lifted_source(0, 0)])
-            .expect("three tracks over 30 frames");
+        let fit = fit(&s, V3::zeros(), model_sources(0, 0)).expect("three tracks over 30 frames");
         assert!((fit.omega - omega).norm() < 1e-6, "{:?}", fit.omega);
     }
 
@@ -538,7 +542,7 @@ mod tests {
                     x.rel_mm += drift[x.track.1] * x.frame as f64;
                 }
             }
-            let Some(fit) = fit(&s, V3::zeros(), [usize::MAX, lifted_source(0, 0)]) else {
+            let Some(fit) = fit(&s, V3::zeros(), model_sources(0, 0)) else {
                 continue;
             };
             fitted += 1;
@@ -631,7 +635,7 @@ mod tests {
                 .fold(0.0, f64::max)
         };
         let without = fit_with(&s, V3::zeros(), Offsets::None).expect("enough tracks");
-        let with = fit(&s, V3::zeros(), [usize::MAX, lifted_source(0, 0)]).expect("enough tracks");
+        let with = fit(&s, V3::zeros(), model_sources(0, 0)).expect("enough tracks");
         assert!(
             worst_z(&without) > 5.0,
             "without offsets: {}",
@@ -653,7 +657,7 @@ mod tests {
         let lifted_terms: Vec<&V3> = with
             .frame_influence
             .iter()
-            .filter(|(k, _)| *k == lifted_source(0, 0))
+            .filter(|(k, _)| *k == model_sources(0, 0)[1])
             .map(|(_, r)| r)
             .collect();
         assert_eq!(lifted_terms.len(), 1, "the lifted model's term is there");

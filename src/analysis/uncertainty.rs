@@ -26,7 +26,7 @@ pub(super) fn combined_uncertainties(
     ph: &[Vec<usize>; 4],
     fits: &Fits,
     spins: Option<[&SpinFit; 4]>,
-    radii: Bodies,
+    bodies: Bodies,
     x_views: &[Option<f64>; 4],
     contact_mm: f64,
     split: f64,
@@ -38,7 +38,7 @@ pub(super) fn combined_uncertainties(
         omega,
         cov: [nalgebra::Matrix3::zeros(); 4],
     });
-    let kin = uncertainties(fits, spins_held.as_ref(), radii, contact_mm, g)?;
+    let kin = uncertainties(fits, spins_held.as_ref(), bodies, contact_mm, g)?;
     let omega = omega.as_ref();
     let mut frames: Vec<usize> = ph.iter().flatten().copied().collect();
     frames.sort_unstable();
@@ -51,19 +51,19 @@ pub(super) fn combined_uncertainties(
             [0, 1, 2, 3].map(|j| SideFit::fit(&series(obs, views, j % 2, &without[j]), split, g));
         let mut fk = fk;
         keep_common_axes(&mut fk);
-        if let Ok(d) = derive(&fk, omega, radii, contact_mm, g) {
+        if let Ok(d) = derive(&fk, omega, bodies, contact_mm, g) {
             reps.push(d.to_vec());
         }
     }
     let vk = kin.to_vec();
     let spin_var = match (spins, omega) {
         (Some(measured), Some(omega)) => {
-            spin_variance(fits, omega, measured, radii, contact_mm, g)?
+            spin_variance(fits, omega, measured, bodies, contact_mm, g)?
         }
         _ => vec![0.0; vk.len()],
     };
     // The views' disagreement on each phase's x velocity, moved through the derivation.
-    let base = derive(fits, omega, radii, contact_mm, g)?.to_vec();
+    let base = derive(fits, omega, bodies, contact_mm, g)?.to_vec();
     let mut view_var = vec![0.0; vk.len()];
     for (k, excess) in x_views.iter().enumerate() {
         let Some(excess) = excess else { continue };
@@ -72,7 +72,7 @@ pub(super) fn combined_uncertainties(
             continue;
         };
         line.v += excess;
-        if let Ok(d) = derive(&moved, omega, radii, contact_mm, g) {
+        if let Ok(d) = derive(&moved, omega, bodies, contact_mm, g) {
             for (v, (a, b)) in view_var.iter_mut().zip(d.to_vec().iter().zip(&base)) {
                 *v += (a - b).powi(2);
             }
@@ -105,7 +105,7 @@ pub(super) fn spin_variance(
     fits: &Fits,
     omega: &[V3; 4],
     measured: [&SpinFit; 4],
-    radii: Bodies,
+    bodies: Bodies,
     contact_mm: f64,
     g: f64,
 ) -> Result<Vec<f64>, ImpactError> {
@@ -115,7 +115,7 @@ pub(super) fn spin_variance(
         .collect();
     frames.sort_unstable();
     frames.dedup();
-    let len = derive(fits, Some(omega), radii, contact_mm, g)?
+    let len = derive(fits, Some(omega), bodies, contact_mm, g)?
         .to_vec()
         .len();
     let mut var = vec![0.0; len];
@@ -129,7 +129,7 @@ pub(super) fn spin_variance(
         });
         let moved = |sign: f64| {
             let w = [0, 1, 2, 3].map(|k| omega[k] + sign * step[k]);
-            derive(fits, Some(&w), radii, contact_mm, g)
+            derive(fits, Some(&w), bodies, contact_mm, g)
                 .ok()
                 .map(|d| d.to_vec())
                 .filter(|v| v.len() == len)

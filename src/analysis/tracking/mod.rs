@@ -66,11 +66,7 @@ pub struct FrameObs {
 
 /// World x of an image point in a view (both views see x).
 fn world_x(view: &View, px: [f64; 2]) -> f64 {
-    view.unproject(px, None)
-        .iter()
-        .find(|(axis, _)| *axis == 0)
-        .map(|(_, x)| *x)
-        .unwrap_or(px[0])
+    view.x_mm(px, None).unwrap_or(px[0])
 }
 
 /// Markers expected on the rims, by (frame index, view index): the grey-level circle fits leave
