@@ -383,9 +383,25 @@ pub fn triangulate(seen: &[(&View, [f64; 2])], near: &V3) -> Option<V3> {
         ata += a.transpose() * a;
         atb += a.transpose() * b;
     }
+    // A single turned view's four equations have rank two in exact arithmetic, but rounding
+    // leaves AᵀA a determinant of order 1e-16, which `try_inverse` accepts: the point then lies
+    // anywhere along the view's line of sight (on v03 with calibrate's maps the mirror-only
+    // frames after the impact were placed up to 200 mm off, and e came out +0.69 ± 7). Two
+    // views at right angles give eigenvalues of one order; a direction seen by neither gives
+    // one twelve orders below the rest.
+    let eig = ata.symmetric_eigenvalues();
+    let (lo, hi) = (eig.min(), eig.max());
+    if !(hi > 0.0) || lo < UNSEEN_DIRECTION * hi {
+        return None;
+    }
     let inv = ata.try_inverse()?;
     Some(inv * atb)
 }
+
+/// `triangulate`'s smallest eigenvalue of AᵀA, as a fraction of its largest, below which a
+/// direction counts as unseen. Views at any angle a rig can have (the mirror's line of sight
+/// a degree or more from the direct camera's plane) are far above it.
+const UNSEEN_DIRECTION: f64 = 1e-9;
 
 /// All views the config describes, direct first.
 pub fn views(cfg: &Config) -> Vec<View> {
@@ -505,6 +521,10 @@ mod tests {
         let both = [(&direct, direct.project(&p)), (&view, px)];
         let t = triangulate(&both, &V3::zeros()).unwrap();
         assert!((t - p).norm() < 1e-12);
+        // One turned view alone leaves its line of sight unseen: no point, rather than one
+        // anywhere along that line (AᵀA's rounding made it invertible).
+        assert_eq!(triangulate(&[(&view, px)], &V3::zeros()), None);
+        assert_eq!(triangulate(&[(&direct, direct.project(&p))], &p), None);
         // Rescaling by (a, b) when the view measured a·x + b: the rescaled view reads the old
         // view's image of p as (p − b·x̂)/a, the whole point scaled, not x alone.
         let mut r = view.clone();
