@@ -142,6 +142,10 @@ pub fn split_pair(
         .map(|p| p.0)
         .collect();
     let tol = 0.3;
+    let ring_sq = (
+        (radius_px - tol).max(0.0).powi(2),
+        (radius_px + tol).powi(2),
+    );
     let all_points = points.clone();
     let mut out = Vec::new();
     for _ in 0..2 {
@@ -162,9 +166,14 @@ pub fn split_pair(
                 let perp = [-(q[1] - p[1]) / d, (q[0] - p[0]) / d];
                 for sgn in [-1.0, 1.0] {
                     let c = [mid[0] + sgn * h * perp[0], mid[1] + sgn * h * perp[1]];
+                    // |d − r| < tol as squares: this count runs for every pair of outline
+                    // points, and `hypot` there was 4 % of the whole analysis.
                     let support = points
                         .iter()
-                        .filter(|x| ((x[0] - c[0]).hypot(x[1] - c[1]) - radius_px).abs() < tol)
+                        .filter(|x| {
+                            let d2 = (x[0] - c[0]).powi(2) + (x[1] - c[1]).powi(2);
+                            d2 > ring_sq.0 && d2 < ring_sq.1
+                        })
                         .count();
                     if best.is_none_or(|(_, b)| support > b) {
                         best = Some((c, support));

@@ -92,13 +92,14 @@ pub(super) fn ring_pixels(
     Some(pixels)
 }
 
-/// The centres of a pixel's 3 × 3 parts, px from the pixel's centre, over which the model is
-/// averaged where an edge crosses the pixel (each part a box of side 1/3 px; on noise-free
-/// renders 4 × 4 point samples did no better than 3 × 3).
-pub(super) const SUBPIXEL_OFFSETS: [f64; 3] = [-1.0 / 3.0, 0.0, 1.0 / 3.0];
+/// The centres of a pixel's three strips, px from the pixel's centre across them, over which
+/// the model is averaged where an edge crosses the pixel (each strip 1/3 px thick; see
+/// `fit_grey_levels`). They replaced 3 × 3 parts, which on noise-free renders did as well as
+/// 4 × 4 point samples.
+pub(super) const STRIP_OFFSETS: [f64; 3] = [-1.0 / 3.0, 0.0, 1.0 / 3.0];
 
-/// Pixels whose centre lies within this of an edge are averaged over in 3 × 3 parts
-/// (`SUBPIXEL_OFFSETS`), px; the rest of the band as one box. The box average along the edge's
+/// Pixels whose centre lies within this of an edge are averaged over in strips
+/// (`STRIP_OFFSETS`), px; the rest of the band as one box. The box average along the edge's
 /// normal matches a square's spread across an edge but not its shape (a step across a side, a
 /// ramp across a diagonal), which matters where the edge crosses the pixel: 2 × 2 parts there
 /// left noise-free centres with masked rim dots scattered 0.0025 px instead of 0.0023.
@@ -107,7 +108,7 @@ const EDGE_ZONE_PX: f64 = 1.0;
 /// How a ring pixel's model is averaged over its area in the final round.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Area {
-    /// An edge crosses it: in 3 × 3 parts.
+    /// An edge crosses it: in strips.
     Fine,
     /// As one box.
     Whole,
@@ -125,7 +126,7 @@ pub(super) struct RingPixel {
 }
 
 impl RingPixel {
-    /// Whether the model is averaged over this pixel in 3 × 3 parts: in the last round
+    /// Whether the model is averaged over this pixel in strips: in the last round
     /// (`area`), where an edge crosses it.
     pub(super) fn in_parts(&self, area: bool) -> bool {
         area && self.area == Area::Fine
