@@ -391,7 +391,7 @@ pub fn triangulate(seen: &[(&View, [f64; 2])], near: &V3) -> Option<V3> {
     // one twelve orders below the rest.
     let eig = ata.symmetric_eigenvalues();
     let (lo, hi) = (eig.min(), eig.max());
-    if !(hi > 0.0) || lo < UNSEEN_DIRECTION * hi {
+    if hi.is_nan() || lo.is_nan() || hi <= 0.0 || lo < UNSEEN_DIRECTION * hi {
         return None;
     }
     let inv = ata.try_inverse()?;

@@ -28,6 +28,34 @@ pub struct MarkerObs {
 /// sum (σ·√n for n pixels).
 const DOT_SIGNIFICANCE: f64 = 5.0;
 
+/// Whether a blob of `pixels` dark pixels with darkness-weighted second moments `[uu, vv, uv]`
+/// (px²) is two dots run together rather than one: larger than one dot of radius
+/// `marker_radius_px` (1.2 times its area: two dots foreshortened to 0.6 of their width near
+/// the limb still cover that), longer along its major axis than one dot can be, and more than
+/// `MERGED_ELONGATION` times as long as it is wide. (A dot of a pixel or two across gives a
+/// blob of three pixels in a row as often as a square; the size keeps that from counting.) Why: two dots a few pixels apart join through the pixels between them, and their
+/// common centroid, the midpoint, is neither dot (on a 640×480 recording spinning at 200 rad/s,
+/// such midpoints in one frame and the separate dots in the next put the spin 25 % low at
+/// 9.6σ). Left out, not split: where they part, the frames on either side see each alone.
+fn two_dots_touching(moments: [f64; 3], pixels: usize, marker_radius_px: f64) -> bool {
+    let one_dot_px = std::f64::consts::PI * marker_radius_px * marker_radius_px;
+    if (pixels as f64) < 1.2 * one_dot_px {
+        return false;
+    }
+    let [uu, vv, uv] = moments;
+    let half_trace = 0.5 * (uu + vv);
+    let spread = (0.25 * (uu - vv).powi(2) + uv * uv).sqrt();
+    let (major, minor) = (half_trace + spread, (half_trace - spread).max(0.0));
+    major > 0.5 * marker_radius_px * marker_radius_px && major > MERGED_ELONGATION * minor
+}
+
+/// How many times longer than wide (as the ratio of its second moments) a dark blob may be and
+/// still be one dot. A round dot's image is an ellipse foreshortened by cos α along the radius,
+/// α ≤ 53° where markers are kept (`MAX_RHO_FRACTION`): at most 1/cos²53° = 2.8 (blur and the
+/// pixel grid make it rounder). Two dots of radius r whose centres are 2r or more apart: at
+/// least 1 + (2r)²/r² = 5.
+const MERGED_ELONGATION: f64 = 4.0;
+
 /// sin 53°: markers further out than this fraction of the radius are not lifted (closer to the
 /// limb their centroid is biased inwards by the steep shading and the clipped dot).
 const MAX_RHO_FRACTION: f64 = 0.8;
@@ -98,6 +126,7 @@ pub fn find(
             continue;
         }
         let (mut sw, mut su, mut sv) = (0.0, 0.0, 0.0);
+        let (mut suu, mut svv, mut suv) = (0.0, 0.0, 0.0);
         stack.push(start);
         let mut members = Vec::new();
         while let Some(k) = stack.pop() {
@@ -108,9 +137,13 @@ pub fn find(
             dark[k] = 0.0;
             members.push(k);
             let (x, y) = (k % w, k / w);
+            let (fu, fv) = ((u0 + x) as f64, (v0 + y) as f64);
             sw += d;
-            su += d * (u0 + x) as f64;
-            sv += d * (v0 + y) as f64;
+            su += d * fu;
+            sv += d * fv;
+            suu += d * fu * fu;
+            svv += d * fv * fv;
+            suv += d * fu * fv;
             stack.extend(four_neighbours(x, y, w, h).map(|(nu, nv)| nv * w + nu));
         }
         // A marker blob larger than a quarter of the disc is not a marker (shading model failed).
@@ -120,7 +153,15 @@ pub fn find(
         if sw < DOT_SIGNIFICANCE * noise_sigma * (members.len() as f64).sqrt() {
             continue;
         }
-        dots.push([su / sw, sv / sw]);
+        let (mu, mv) = (su / sw, sv / sw);
+        if two_dots_touching(
+            [suu / sw - mu * mu, svv / sw - mv * mv, suv / sw - mu * mv],
+            members.len(),
+            marker_radius_px,
+        ) {
+            continue;
+        }
+        dots.push([mu, mv]);
     }
     // The centroid of a dot's projected area lies closer to the disc centre than the projection
     // of the dot's centre, by the factor 1 − θ²/2 (θ its angular radius on the sphere): the part
@@ -461,6 +502,134 @@ mod tests {
         } else {
             err[0].hypot(err[1])
         })
+    }
+
+    /// The markers `find` reports on a still sphere rendered at 5.394 px/mm (a 640×480 rig's
+    /// scale: 34 px across, dots 5.4 px across) with one dot at each of `dirs` (unit vectors
+    /// from the centre, world), px from the disc's centre, and the dots' true offsets.
+    fn found_on_large_sphere(dirs: &[V3], noise: f64, seed: u64) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
+        let g = ViewGeometry::shorthand([0, 0, 96, 96], 5.394, [47.6, 48.3], "+x", "-y");
+        let view = View::from_config(ViewKind::Direct, &g);
+        let scene = crate::analysis::geometry::one_view_scene(&view, 96, 96);
+        let cfg = hw_sim::LabConfig {
+            noise_sigma_grey: noise,
+            ..Default::default()
+        };
+        let radius_mm = 3.175;
+        let body = |pos: V3| Body {
+            pos_mm: pos,
+            vel_mm_s: V3::zeros(),
+            spin_rad_s: V3::zeros(),
+            orientation: UnitQuaternion::identity(),
+            radius_mm,
+            mass_g: 1.0,
+        };
+        let markers: Vec<V3> = dirs.iter().map(|d| d.normalize() * radius_mm).collect();
+        let drawn = markers.clone();
+        let state = move |_t: f64| {
+            (
+                [body(V3::zeros()), body(V3::new(500.0, 0.0, 0.0))],
+                [drawn.clone(), vec![]],
+            )
+        };
+        let mut r = hw_sim::render::Renderer::new(scene, cfg.clone(), seed);
+        let mut raw = Vec::new();
+        r.render(0.0, &state, &mut raw);
+        let mut img = GreyImage::new();
+        img.load(&raw, 96, 96, 1);
+        let rough = view.project(&V3::zeros());
+        let Some(disc) = circle::refine(
+            &img,
+            &view,
+            rough,
+            radius_mm * view.px_per_mm,
+            cfg.background_grey,
+            None,
+            &[],
+        ) else {
+            return (Vec::new(), Vec::new());
+        };
+        let found = find(
+            &img,
+            &view,
+            &disc,
+            radius_mm,
+            cfg.marker_diameter_mm,
+            noise.max(0.5),
+        )
+        .iter()
+        .map(|m| {
+            [
+                m.centre_px[0] - disc.centre[0],
+                m.centre_px[1] - disc.centre[1],
+            ]
+        })
+        .collect();
+        let truth = markers
+            .iter()
+            .map(|m| {
+                [
+                    view.px_per_mm * view.u_axis.dot(m),
+                    view.px_per_mm * view.v_axis.dot(m),
+                ]
+            })
+            .collect();
+        (found, truth)
+    }
+
+    /// Two dots whose images are 6 px apart (1.1 dot diameters; 0.6 px between their edges)
+    /// join through the pixels between them. Their common centroid, the midpoint, is neither
+    /// dot, and was reported as a marker; now such a blob is left out. Dots 12 px apart are
+    /// both found where they are, and so is a lone dot 50° out (foreshortened to 0.64 of its
+    /// width: one dot, not two).
+    #[test]
+    fn two_dots_run_together_are_not_taken_for_one_at_their_midpoint() {
+        let at = |deg: f64, azimuth_deg: f64| {
+            let (a, z) = (deg.to_radians(), azimuth_deg.to_radians());
+            V3::new(a.sin() * z.cos(), a.sin() * z.sin(), a.cos())
+        };
+        for (k, azimuth) in [0.0, 35.0, 90.0, 140.0].into_iter().enumerate() {
+            // 2·17.1 px·sin 10.1° = 6.0 px apart, either side of the disc's centre.
+            let (found, truth) = found_on_large_sphere(
+                &[at(10.1, azimuth), at(10.1, azimuth + 180.0)],
+                2.0,
+                k as u64,
+            );
+            let mid = [
+                0.5 * (truth[0][0] + truth[1][0]),
+                0.5 * (truth[0][1] + truth[1][1]),
+            ];
+            for f in &found {
+                let off_mid = (f[0] - mid[0]).hypot(f[1] - mid[1]);
+                let off_dot = truth
+                    .iter()
+                    .map(|t| (f[0] - t[0]).hypot(f[1] - t[1]))
+                    .fold(f64::INFINITY, f64::min);
+                assert!(
+                    off_mid > 1.5 && off_dot < 0.5,
+                    "azimuth {azimuth}°: a marker at {f:?}, {off_mid:.2} px from the dots' midpoint and {off_dot:.2} px from the nearer dot"
+                );
+            }
+            let (found, truth) = found_on_large_sphere(
+                &[at(20.5, azimuth), at(20.5, azimuth + 180.0)],
+                2.0,
+                10 + k as u64,
+            );
+            assert_eq!(found.len(), 2, "dots 12 px apart at {azimuth}°: {found:?}");
+            for t in &truth {
+                let near = found
+                    .iter()
+                    .map(|f| (f[0] - t[0]).hypot(f[1] - t[1]))
+                    .fold(f64::INFINITY, f64::min);
+                assert!(near < 0.3, "dot at {t:?}: nearest found {near:.2} px off");
+            }
+            let (found, _) = found_on_large_sphere(&[at(50.0, azimuth)], 2.0, 20 + k as u64);
+            assert_eq!(
+                found.len(),
+                1,
+                "a lone dot 50° out at {azimuth}°: {found:?}"
+            );
+        }
     }
 
     /// Noise-free renders: what is left is the dot's rendering (4×4 supersampling) and the
