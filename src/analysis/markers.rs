@@ -453,82 +453,68 @@ mod tests {
         noise: f64,
         seed: u64,
     ) -> Option<f64> {
-        let g = ViewGeometry::shorthand([0, 0, 64, 64], 2.1576, [31.7, 32.2], "+x", "-y");
-        let view = View::from_config(ViewKind::Direct, &g);
-        let scene = crate::analysis::geometry::one_view_scene(&view, 64, 64);
-        let cfg = hw_sim::LabConfig {
-            noise_sigma_grey: noise,
-            look,
-            ..Default::default()
-        };
-        let radius_mm = 3.175;
         let (a, z) = (alpha_deg.to_radians(), azimuth_deg.to_radians());
-        let dir = view.facing * a.cos() + (view.u_axis * z.cos() + view.v_axis * z.sin()) * a.sin();
-        let body = |pos: V3| Body {
-            pos_mm: pos,
-            vel_mm_s: V3::zeros(),
-            spin_rad_s: V3::zeros(),
-            orientation: UnitQuaternion::identity(),
-            radius_mm,
-            mass_g: 1.0,
-        };
-        let marker = dir * radius_mm;
-        let state = move |_t: f64| {
-            (
-                [body(V3::zeros()), body(V3::new(500.0, 0.0, 0.0))],
-                [vec![marker], vec![]],
-            )
-        };
-        let mut r = hw_sim::render::Renderer::new(scene, cfg.clone(), seed);
-        let mut raw = Vec::new();
-        r.render(0.0, &state, &mut raw);
-        let mut img = GreyImage::new();
-        img.load(&raw, 64, 64, 1);
-        let rough = view.project(&V3::zeros());
-        let disc = circle::refine(
-            &img,
-            &view,
-            rough,
-            radius_mm * view.px_per_mm,
-            cfg.background_grey,
-            None,
-            &[],
-        )?;
-        let found = find(
-            &img,
-            &view,
-            &disc,
-            radius_mm,
-            cfg.marker_diameter_mm,
-            noise.max(0.5),
-        );
-        let truth = [
-            view.px_per_mm * view.u_axis.dot(&marker),
-            view.px_per_mm * view.v_axis.dot(&marker),
-        ];
-        let m = found.first()?;
-        let rel = [
-            m.centre_px[0] - disc.centre[0],
-            m.centre_px[1] - disc.centre[1],
-        ];
-        let rho = truth[0].hypot(truth[1]);
-        let err = [rel[0] - truth[0], rel[1] - truth[1]];
+        // The direct view: facing +z, u along +x, v along −y.
+        let dir = V3::new(a.sin() * z.cos(), -a.sin() * z.sin(), a.cos());
+        let (found, truth) = found_on_still_sphere(SMALL, look, &[dir], noise, seed)?;
+        let (m, t) = (found.first()?, truth[0]);
+        let rho = t[0].hypot(t[1]);
+        let err = [m[0] - t[0], m[1] - t[1]];
         Some(if rho > 1e-9 {
-            (err[0] * truth[0] + err[1] * truth[1]) / rho
+            (err[0] * t[0] + err[1] * t[1]) / rho
         } else {
             err[0].hypot(err[1])
         })
     }
 
-    /// The markers `find` reports on a still sphere rendered at 5.394 px/mm (a 640×480 rig's
-    /// scale: 34 px across, dots 5.4 px across) with one dot at each of `dirs` (unit vectors
-    /// from the centre, world), px from the disc's centre, and the dots' true offsets.
-    fn found_on_large_sphere(dirs: &[V3], noise: f64, seed: u64) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
-        let g = ViewGeometry::shorthand([0, 0, 96, 96], 5.394, [47.6, 48.3], "+x", "-y");
+    /// An image offset, px.
+    type Px = [f64; 2];
+
+    /// A square frame of `size` px holding one direct view at `px_per_mm`, origin at `origin_px`.
+    struct Frame {
+        size: usize,
+        px_per_mm: f64,
+        origin_px: [f64; 2],
+    }
+
+    /// hw-sim's default 240×192 scale: a sphere 13.7 px across, dots 2.2 px across.
+    const SMALL: Frame = Frame {
+        size: 64,
+        px_per_mm: 2.1576,
+        origin_px: [31.7, 32.2],
+    };
+
+    /// A 640×480 rig's scale: a sphere 34 px across, dots 5.4 px across.
+    const LARGE: Frame = Frame {
+        size: 96,
+        px_per_mm: 5.394,
+        origin_px: [47.6, 48.3],
+    };
+
+    /// The markers `find` reports on a still sphere rendered by the simulator in `frame`, under
+    /// `look` (None: the original render), with one dot at each of `dirs` (directions from the
+    /// centre, world), px from the fitted disc's centre, and the dots' true offsets; None where
+    /// the disc is not found.
+    fn found_on_still_sphere(
+        frame: Frame,
+        look: Option<hw_sim::look::Look>,
+        dirs: &[V3],
+        noise: f64,
+        seed: u64,
+    ) -> Option<(Vec<Px>, Vec<Px>)> {
+        let n = frame.size;
+        let g = ViewGeometry::shorthand(
+            [0, 0, n as u32, n as u32],
+            frame.px_per_mm,
+            frame.origin_px,
+            "+x",
+            "-y",
+        );
         let view = View::from_config(ViewKind::Direct, &g);
-        let scene = crate::analysis::geometry::one_view_scene(&view, 96, 96);
+        let scene = crate::analysis::geometry::one_view_scene(&view, n as u32, n as u32);
         let cfg = hw_sim::LabConfig {
             noise_sigma_grey: noise,
+            look,
             ..Default::default()
         };
         let radius_mm = 3.175;
@@ -552,9 +538,9 @@ mod tests {
         let mut raw = Vec::new();
         r.render(0.0, &state, &mut raw);
         let mut img = GreyImage::new();
-        img.load(&raw, 96, 96, 1);
+        img.load(&raw, n, n, 1);
         let rough = view.project(&V3::zeros());
-        let Some(disc) = circle::refine(
+        let disc = circle::refine(
             &img,
             &view,
             rough,
@@ -562,9 +548,7 @@ mod tests {
             cfg.background_grey,
             None,
             &[],
-        ) else {
-            return (Vec::new(), Vec::new());
-        };
+        )?;
         let found = find(
             &img,
             &view,
@@ -590,7 +574,7 @@ mod tests {
                 ]
             })
             .collect();
-        (found, truth)
+        Some((found, truth))
     }
 
     /// Two dots whose images are 6 px apart (1.1 dot diameters; 0.6 px between their edges)
@@ -607,11 +591,14 @@ mod tests {
         };
         for (k, azimuth) in [0.0, 35.0, 90.0, 140.0].into_iter().enumerate() {
             // 2·17.1 px·sin 10.1° = 6.0 px apart, either side of the disc's centre.
-            let (found, truth) = found_on_large_sphere(
+            let (found, truth) = found_on_still_sphere(
+                LARGE,
+                None,
                 &[at(10.1, azimuth), at(10.1, azimuth + 180.0)],
                 2.0,
                 k as u64,
-            );
+            )
+            .expect("the disc is found");
             let mid = [
                 0.5 * (truth[0][0] + truth[1][0]),
                 0.5 * (truth[0][1] + truth[1][1]),
@@ -627,11 +614,14 @@ mod tests {
                     "azimuth {azimuth}°: a marker at {f:?}, {off_mid:.2} px from the dots' midpoint and {off_dot:.2} px from the nearer dot"
                 );
             }
-            let (found, truth) = found_on_large_sphere(
+            let (found, truth) = found_on_still_sphere(
+                LARGE,
+                None,
                 &[at(20.5, azimuth), at(20.5, azimuth + 180.0)],
                 2.0,
                 10 + k as u64,
-            );
+            )
+            .expect("the disc is found");
             assert_eq!(found.len(), 2, "dots 12 px apart at {azimuth}°: {found:?}");
             for t in &truth {
                 let near = found
@@ -640,7 +630,9 @@ mod tests {
                     .fold(f64::INFINITY, f64::min);
                 assert!(near < 0.3, "dot at {t:?}: nearest found {near:.2} px off");
             }
-            let (found, _) = found_on_large_sphere(&[at(50.0, azimuth)], 2.0, 20 + k as u64);
+            let (found, _) =
+                found_on_still_sphere(LARGE, None, &[at(50.0, azimuth)], 2.0, 20 + k as u64)
+                    .unwrap_or_default();
             assert_eq!(
                 found.len(),
                 1,
