@@ -712,3 +712,36 @@ fn a_defocused_sphere_is_measured_as_well_as_its_fit_claims() {
         );
     }
 }
+
+/// A grey-level fit started 1.1–2 px from a blurred, side-lit disc (where the edge-point fit
+/// puts such a disc: the threshold crosses the dark limb's blur well inside it) settles on the
+/// disc, not on "no fit": it is tried again from where it went and kept when that agrees
+/// (`profile::fit_one`). Before, any fit that moved more than a pixel was refused and the
+/// edge-point fit, a pixel off with a claimed 0.02 px, stood in for it.
+#[test]
+fn a_fit_started_far_from_a_blurred_disc_is_tried_again_from_where_it_went() {
+    let (view, r_px, mut cfg) = dotless_direct_view(64, 64, [31.3, 31.6]);
+    cfg.look = Some(hw_sim::Look {
+        defocus_sigma_px: 1.2,
+        ..lit_from(40.0, 330.0, 0.3)
+    });
+    let far = V3::new(100.0, 100.0, 0.0);
+    let mut worst: f64 = 0.0;
+    for k in 0..12u64 {
+        let kf = k as f64;
+        let c = V3::new(
+            (kf * 0.618).fract() / view.px_per_mm,
+            (kf * 0.382).fract() / view.px_per_mm,
+            0.0,
+        );
+        let (img, truth) = render_pair(&view, 64, 64, [c, far], &cfg, 1300 + k);
+        let t = truth[0];
+        let angle = kf * 0.9;
+        let off = 1.1 + 0.08 * kf;
+        let start = [t[0] + off * angle.cos(), t[1] + off * angle.sin()];
+        let f = profile_fit_at(&img, &view, start, r_px, cfg.background_grey, None, &[])
+            .unwrap_or_else(|| panic!("phase {k}: started {off:.2} px off, no fit"));
+        worst = worst.max((f.centre[0] - t[0]).hypot(f.centre[1] - t[1]));
+    }
+    assert!(worst < 0.2, "worst centre {worst:.3} px from the truth");
+}

@@ -32,14 +32,16 @@ pub(super) enum Layering {
 /// Levenberg–Marquardt fit of `N` discs' grey-level model (see `profile_fit`) to `pixels`,
 /// P = 1 + 10·N parameters: the background, then per disc [cx, cy, R, s, a, b, c₁, c₂, a₁, a₂]
 /// (`DISC_PARAMS`); `layering`
-/// says whether two discs' terms add or one hides the other. Each disc must settle within a
-/// pixel of its start. Returns the discs and their fitted edge widths s, px.
+/// says whether two discs' terms add or one hides the other. Each disc must settle within
+/// `max_move_px` of its start, and its radius within a pixel of the start's. Returns the discs
+/// and their fitted edge widths s, px.
 pub(super) fn fit_grey_levels<const P: usize, const N: usize>(
     pixels: &[RingPixel],
     starts: [&CircleFit; N],
     background: f64,
     layering: Layering,
     radius_px: Option<f64>,
+    max_move_px: f64,
 ) -> Option<([CircleFit; N], [f64; N])>
 where
     nalgebra::Const<P>: nalgebra::DimMin<nalgebra::Const<P>, Output = nalgebra::Const<P>>,
@@ -602,7 +604,7 @@ where
         let o = 1 + DISC_PARAMS * k;
         widths[k] = p[o + 3];
         let moved = (p[o] - st.centre[0]).hypot(p[o + 1] - st.centre[1]);
-        if moved > 1.0 || (p[o + 2] - st.radius).abs() > 1.0 {
+        if moved > max_move_px || (p[o + 2] - st.radius).abs() > 1.0 {
             return None;
         }
         out[k] = CircleFit {
