@@ -1,5 +1,5 @@
 //! The Levenberg–Marquardt fit of one or two discs' grey-level model to a ring's pixels: the
-//! model and its derivatives per pixel, the robust first round that finds the dots, their
+//! model and its derivatives per pixel, the robust rounds (the first finds the dots), their
 //! rejection, the final round over each pixel's area, and the covariance.
 
 use super::super::CircleFit;
@@ -16,7 +16,7 @@ const DISC_PARAMS: usize = 10;
 /// far sharper than the pixel it is averaged over.
 const EDGE_WIDTH_PX: (f64, f64) = (0.05, 3.0);
 
-/// Cauchy's loss ρ(r) = c²·ln(1 + (r/c)²) in the first, dot-finding round of `fit_grey_levels`
+/// Cauchy's loss ρ(r) = c²·ln(1 + (r/c)²) in every round of `fit_grey_levels`
 /// takes c = 2.385σ: the usual choice, 95 % as efficient as least squares on Gaussian noise.
 const CAUCHY_SCALE: f64 = 2.385;
 
@@ -542,16 +542,18 @@ where
         // round's model is smooth, so it converges to its own minimum from here. (With point
         // samples of a near step and of √ at the limb, that round zig-zagged and where it
         // started showed in its result: this had to settle to 1e-7 px.)
-        // The first round, with every dot still in, weighs each pixel by Cauchy's loss on a
-        // scale from the residuals at the start, so that the dots' residuals do not steer the
-        // descent. Why: with plain least squares the first round's minimum, and so which
+        // Every round weighs each pixel by Cauchy's loss on a scale from the residuals where
+        // it starts, so that the dots' residuals do not steer the descent: in the first, with
+        // every dot still in; in the later ones, the blurred or faint dots the rejection below
+        // leaves (a dot blurred by defocus is 5–15σ darker over a dozen pixels, none of them
+        // 4σ off a model that bends to meet it). Why: with plain least squares the first round's minimum, and so which
         // pixels the rejection below dropped, moved with where the descent stopped (v03's
         // centres 0.072 → 0.103 px RMS when the descent was only made quicker,
         // docs/performance.md); the dots' residuals also made Gauss–Newton misjudge the
         // curvature and zig-zag (12 passes a fit). Measured on the same frames: v03 0.072 →
         // 0.037 px, 38 varied-look recordings 0.0783 → 0.0741 px, 12 % fewer model
         // evaluations.
-        let robust = (round == 0).then(|| CAUCHY_SCALE * robust_sigma(&at_p, &p));
+        let robust = Some(CAUCHY_SCALE * robust_sigma(&at_p, &p));
         at_p = descend(&mut p, &keep, false, settle_px(round), robust, at_p).2;
         if round == 2 {
             break;
@@ -585,8 +587,14 @@ where
             return None;
         }
     }
+    // The final round too (Cauchy's loss in every round rather than the first only, the same
+    // 190 varied-look recordings: centre RMS 0.0688 → 0.0657 px, lower in every look family;
+    // 10 % more model evaluations; docs/accuracy.md, session 29). Its cost, Σ c²·ln(1 + (r/c)²),
+    // gives σ² below: no smaller than the weighted residuals' Σ w·r², so the dots left in
+    // still widen the σ.
     evaluate(&p, &keep, true, &mut at_p);
-    let (cost, jtj, _) = descend(&mut p, &keep, true, 1e-4, None, at_p);
+    let final_robust = Some(CAUCHY_SCALE * robust_sigma(&at_p, &p));
+    let (cost, jtj, _) = descend(&mut p, &keep, true, 1e-4, final_robust, at_p);
     if !p.iter().all(|x| x.is_finite()) {
         return None;
     }
