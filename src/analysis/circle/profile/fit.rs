@@ -546,13 +546,13 @@ where
         // it starts, so that the dots' residuals do not steer the descent: in the first, with
         // every dot still in; in the later ones, the blurred or faint dots the rejection below
         // leaves (a dot blurred by defocus is 5–15σ darker over a dozen pixels, none of them
-        // 4σ off a model that bends to meet it). Why: with plain least squares the first round's minimum, and so which
-        // pixels the rejection below dropped, moved with where the descent stopped (v03's
-        // centres 0.072 → 0.103 px RMS when the descent was only made quicker,
-        // docs/performance.md); the dots' residuals also made Gauss–Newton misjudge the
-        // curvature and zig-zag (12 passes a fit). Measured on the same frames: v03 0.072 →
-        // 0.037 px, 38 varied-look recordings 0.0783 → 0.0741 px, 12 % fewer model
-        // evaluations.
+        // 4σ off a model that bends to meet it). Why in the first: with plain least squares
+        // its minimum, and so which pixels the rejection below dropped, moved with where the
+        // descent stopped (v03's centres 0.072 → 0.103 px RMS when the descent was only made
+        // quicker, docs/performance.md); the dots' residuals also made Gauss–Newton misjudge
+        // the curvature and zig-zag (12 passes a fit). Measured on the same frames: v03 0.072
+        // → 0.037 px, 38 varied-look recordings 0.0783 → 0.0741 px, 12 % fewer model
+        // evaluations. In the later ones: see the final round below.
         let robust = Some(CAUCHY_SCALE * robust_sigma(&at_p, &p));
         at_p = descend(&mut p, &keep, false, settle_px(round), robust, at_p).2;
         if round == 2 {

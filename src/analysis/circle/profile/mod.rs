@@ -104,7 +104,7 @@ fn fit_one(
         reached.centre[0] - start.centre[0],
         reached.centre[1] - start.centre[1],
     );
-    let ([first], widths) = if moved <= 1.0 || radius_px.is_some() {
+    let ([first], widths) = if moved <= 1.0 {
         ([reached], reached_widths)
     } else {
         let from_there = CircleFit {
