@@ -577,17 +577,14 @@ where
         }
         // (Pixel centres: whole-pixel offsets, so the squares compare exactly.) The rows kept
         // go with their pixels: the next round starts where this one stopped.
-        let kept: Vec<bool> = keep
-            .iter()
-            .map(|q| {
+        (keep, at_p) = keep
+            .into_iter()
+            .zip(at_p)
+            .filter(|(q, _)| {
                 !bad.iter()
                     .any(|b| (q.u - b.0).powi(2) + (q.v - b.1).powi(2) <= 1.5 * 1.5)
             })
-            .collect();
-        let mut flags = kept.iter();
-        keep.retain(|_| flags.next().copied().unwrap_or(false));
-        let mut flags = kept.iter();
-        at_p.retain(|_| flags.next().copied().unwrap_or(false));
+            .unzip();
         if keep.len() < n_start / 2 {
             return None;
         }
