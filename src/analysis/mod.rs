@@ -23,6 +23,7 @@ pub mod markers;
 mod momentum;
 mod overlap;
 mod phases;
+mod radius_misfit;
 pub mod report;
 pub mod rotation;
 mod second_pass;
@@ -258,6 +259,7 @@ fn observations_once(
     };
     let (mut views, mut obs) = (views, obs);
     markers::drop_in_the_other_disc(&mut obs);
+    radius_misfit::widen(&mut obs);
     world::place(&mut obs, &views);
     let mut calibration = calibrate_mirror(&obs, &mut views);
     if calibration.as_ref().is_some_and(|c| c.refined) {
@@ -777,6 +779,62 @@ mod tests {
             kept.last(),
             kept.len()
         );
+    }
+
+    /// A phase whose x the mirror sees drifting away from the direct view's by 20 mm/s (a bias
+    /// one view's centres share from frame to frame, which that view's own line fit and the
+    /// jackknife over frames cannot see) gives its difference and the excess beyond twice its
+    /// σ; the same phase with both views agreeing gives nothing to add.
+    #[test]
+    fn an_x_velocity_the_views_disagree_on_gives_its_excess() {
+        use crate::analysis::tracking::Measurement;
+        let cfg = Config::default_config();
+        let views = geometry::views(&cfg);
+        let dt = 1e-3;
+        let v = V3::new(400.0, -300.0, 20.0);
+        let recording = |mirror_drift_mm_s: f64| -> Vec<FrameObs> {
+            (0..30)
+                .map(|k| {
+                    let t = k as f64 * dt;
+                    let p = V3::new(-20.0, 10.0, 0.0) + v * t;
+                    // Centre noise of ±0.02 px, the same in every run of the test.
+                    let wobble = 0.02 * ((k * 7919) % 13) as f64 / 6.0 - 0.02;
+                    let m = |vi: usize, drift_mm: f64| {
+                        let mut px = views[vi].project(&(p + V3::new(drift_mm, 0.0, 0.0)));
+                        px[0] += wobble;
+                        px[1] -= wobble;
+                        Some(Measurement {
+                            centre_px: px,
+                            blob_centroid_px: px,
+                            sigma_px: [0.02, 0.02],
+                            diameter_px: 13.7,
+                            markers: Vec::new(),
+                            hidden_in_part: None,
+                        })
+                    };
+                    FrameObs {
+                        index: k as u64,
+                        frame_id: k as u64,
+                        time_s: t,
+                        spheres: [
+                            vec![m(0, 0.0), m(1, mirror_drift_mm_s * t)],
+                            vec![None, None],
+                        ],
+                        position_mm: [None, None],
+                    }
+                })
+                .collect()
+        };
+        let frames: Vec<usize> = (0..30).collect();
+        let biased = recording(20.0);
+        let (d, sigma, excess) = phases::x_views_disagree(&biased, &views, 0, &frames, 0.015)
+            .expect("a 20 mm/s disagreement is beyond twice its σ");
+        assert!((d + 20.0).abs() < 1.0, "direct − mirror {d:+.2} mm/s");
+        assert!(sigma < 2.0, "σ {sigma:.2} mm/s");
+        assert!((excess * excess - (d * d - 4.0 * sigma * sigma)).abs() < 1e-9);
+        assert!(excess > 15.0, "excess {excess:.2} mm/s");
+        let agreeing = recording(0.0);
+        assert!(phases::x_views_disagree(&agreeing, &views, 0, &frames, 0.015).is_none());
     }
 
     /// A dot seen before the impact is carried to a frame after it by the spin before the

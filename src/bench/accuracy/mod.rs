@@ -138,6 +138,9 @@ pub struct CaseResult {
     /// The components beyond 5σ, named (`"b post velocity y: -1.23 ± 0.04 mm/s (31σ)"`).
     pub beyond_5_sigma: Vec<String>,
     pub centre_err_px: Vec<f64>,
+    /// Per measured centre and image axis, its error over its reported σ: whether the σ the
+    /// report gives each centre holds.
+    pub centre_z: Vec<f64>,
     /// Per detected marker used (relative to its disc centre, against the truth's): (ρ/R,
     /// |error| px, radial error px, + outwards).
     pub marker_err_px: Vec<(f64, f64, f64)>,
@@ -364,6 +367,14 @@ fn analyse_case(cfg: &Config, session: &Path, out: &mut CaseResult) -> Result<()
                 };
                 out.centre_err_px
                     .push((m.centre_px[0] - tu).hypot(m.centre_px[1] - tv));
+                for (err, sigma) in [m.centre_px[0] - tu, m.centre_px[1] - tv]
+                    .into_iter()
+                    .zip(m.sigma_px)
+                {
+                    if sigma > 0.0 && sigma.is_finite() {
+                        out.centre_z.push(err / sigma);
+                    }
+                }
                 if clear(tf, view) {
                     out.centre_err_uv
                         .push([m.centre_px[0] - tu, m.centre_px[1] - tv]);

@@ -180,6 +180,19 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
         rms(&all(&|r| r.centre_err_px.clone())),
         rms(&all(&|r| r.thesis_centre_err_px.clone()))
     );
+    let centre_z = all(&|r| r.centre_z.clone());
+    let share = |keep: &dyn Fn(f64) -> bool| {
+        100.0 * centre_z.iter().filter(|z| keep(z.abs())).count() as f64
+            / centre_z.len().max(1) as f64
+    };
+    let _ = writeln!(
+        s,
+        "centre σ, every measured centre and image axis ({} values): {:.1} % within ±1σ (68.3 % if honest), {:.2} % beyond 3σ (0.27 %), {:.2} % beyond 5σ",
+        centre_z.len(),
+        share(&|z| z <= 1.0),
+        share(&|z| z > 3.0),
+        share(&|z| z > 5.0)
+    );
     let markers: Vec<(f64, f64, f64)> = results
         .iter()
         .flat_map(|(_, r)| r.marker_err_px.iter().copied())
