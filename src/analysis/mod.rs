@@ -359,6 +359,13 @@ fn observations_once(
         }
         Some(excess)
     });
+    // Each phase's velocity bias the centres may share: the views' x disagreement, and the
+    // misfits their radii show (`phases::stray_velocity`), the larger of the two on x.
+    let shared_bias: [[f64; 3]; 4] = [0, 1, 2, 3].map(|k| {
+        let mut stray = phases::stray_velocity(&obs, &views, k % 2, &ph[k]);
+        stray[0] = stray[0].max(x_views[k].unwrap_or(0.0));
+        stray
+    });
     if let Some(c) = calibration.as_mut() {
         warnings.extend(calibration::check_geometry(c, &obs, &views, &ph, g));
     }
@@ -376,7 +383,16 @@ fn observations_once(
     if let (Ok(d0), Ok(s0)) = (
         derive(&fits, None, bodies, contact_mm, g),
         combined_uncertainties(
-            &obs, &views, &ph, &fits, None, bodies, &x_views, contact_mm, split, g,
+            &obs,
+            &views,
+            &ph,
+            &fits,
+            None,
+            bodies,
+            &shared_bias,
+            contact_mm,
+            split,
+            g,
         ),
     ) {
         let measured_3d = s0.velocities.iter().all(|v| v.iter().all(|x| *x > 0.0));
@@ -446,7 +462,16 @@ fn observations_once(
     )
     .map_err(impact_err)?;
     let sd = combined_uncertainties(
-        &obs, &views, &ph, &fits, spin_fits, bodies, &x_views, contact_mm, split, g,
+        &obs,
+        &views,
+        &ph,
+        &fits,
+        spin_fits,
+        bodies,
+        &shared_bias,
+        contact_mm,
+        split,
+        g,
     )
     .map_err(impact_err)?;
     let t_c = split + d.tau_c;
@@ -757,6 +782,7 @@ mod tests {
                         diameter_px: 13.7,
                         markers: Vec::new(),
                         hidden_in_part: None,
+                        radius_stray_px: 0.0,
                     })
                 };
                 FrameObs {
@@ -810,6 +836,7 @@ mod tests {
                             diameter_px: 13.7,
                             markers: Vec::new(),
                             hidden_in_part: None,
+                            radius_stray_px: 0.0,
                         })
                     };
                     FrameObs {
@@ -835,6 +862,70 @@ mod tests {
         assert!(excess > 15.0, "excess {excess:.2} mm/s");
         let agreeing = recording(0.0);
         assert!(phases::x_views_disagree(&agreeing, &views, 0, &frames, 0.015).is_none());
+    }
+
+    /// A phase of 30 frames whose last four radii stray by 0.5 px (a blurred neighbour's edge
+    /// before contact): their possible shift of the velocity, in full over the run, is what
+    /// comes back for the axes the direct view measures; strays at the radius's noise level
+    /// alone, scattered through the phase, give next to nothing.
+    #[test]
+    fn a_run_of_misfit_radii_at_one_end_of_a_phase_bounds_its_velocity() {
+        use crate::analysis::tracking::Measurement;
+        let cfg = Config::default_config();
+        let views = geometry::views(&cfg);
+        let dt = 1e-3;
+        let v = V3::new(400.0, -300.0, 20.0);
+        let recording = |stray_px: &dyn Fn(usize) -> f64| -> Vec<FrameObs> {
+            (0..30)
+                .map(|k| {
+                    let p = V3::new(-20.0, 10.0, 0.0) + v * (k as f64 * dt);
+                    let m = |vi: usize| {
+                        let px = views[vi].project(&p);
+                        Some(Measurement {
+                            centre_px: px,
+                            blob_centroid_px: px,
+                            sigma_px: [0.02, 0.02],
+                            diameter_px: 13.7,
+                            markers: Vec::new(),
+                            hidden_in_part: None,
+                            radius_stray_px: stray_px(k),
+                        })
+                    };
+                    FrameObs {
+                        index: k as u64,
+                        frame_id: k as u64,
+                        time_s: k as f64 * dt,
+                        spheres: [vec![m(0), m(1)], vec![None, None]],
+                        position_mm: [None, None],
+                    }
+                })
+                .collect()
+        };
+        let frames: Vec<usize> = (0..30).collect();
+        // Noise-level strays, ±0.02 px, alternating.
+        let noise = |k: usize| if k.is_multiple_of(2) { 0.02 } else { -0.02 };
+        let clean = phases::stray_velocity(&recording(&noise), &views, 0, &frames);
+        assert!(clean.iter().all(|x| *x < 1e-9), "{clean:?} mm/s");
+        let misfit = |k: usize| if k >= 26 { 0.5 } else { noise(k) };
+        let shift = phases::stray_velocity(&recording(&misfit), &views, 0, &frames);
+        // Frames 26–29 lie 11.5–14.5 frames after the phase's mean time; Σ(t − t̄)² = 2247.5 ms².
+        let px_per_mm = views[0].px_per_mm;
+        let beyond = (0.25f64 - 0.02f64.powi(2) * 1.4826f64.powi(2)).sqrt();
+        let expected = (11.5 + 12.5 + 13.5 + 14.5) * 1e-3 * beyond
+            / std::f64::consts::SQRT_2
+            / px_per_mm
+            / 2247.5e-6;
+        for axis in [0, 1] {
+            assert!(
+                (shift[axis] - expected).abs() < 1e-6 * expected,
+                "axis {axis}: {:.3} mm/s, expected {expected:.3}",
+                shift[axis]
+            );
+        }
+        assert!(
+            shift[2] > 0.0,
+            "the mirror's z has the same strays: {shift:?}"
+        );
     }
 
     /// A dot seen before the impact is carried to a frame after it by the spin before the

@@ -128,6 +128,7 @@ mod tests {
             diameter_px: 13.7,
             markers: Vec::new(),
             hidden_in_part: h,
+            radius_stray_px: 0.0,
         };
         FrameObs {
             index: k,

@@ -26,9 +26,9 @@ fn series_and_sigma(
     s: usize,
     frames: &[usize],
 ) -> ([Series; 3], [f64; 3], [Vec<f64>; 3]) {
-    let mut points: [Vec<(f64, bool)>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    let mut points: [Vec<Point>; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let out = series_with(obs, views, s, frames, Some(&mut points));
-    let median = |v: &[(f64, bool)]| {
+    let median = |v: &[Point]| {
         let mut finite: Vec<f64> = v.iter().map(|p| p.0).filter(|x| x.is_finite()).collect();
         finite.sort_by(f64::total_cmp);
         finite.get(finite.len() / 2).copied().unwrap_or(0.0)
@@ -37,7 +37,7 @@ fn series_and_sigma(
     let weights = [0, 1, 2].map(|i| {
         points[i]
             .iter()
-            .map(|&(sigma, hidden)| {
+            .map(|&(sigma, hidden, _)| {
                 if hidden && sigma.is_finite() && sigma > floor[i] && floor[i] > 0.0 {
                     (floor[i] / sigma).powi(2)
                 } else {
@@ -49,15 +49,19 @@ fn series_and_sigma(
     (out, floor, weights)
 }
 
-/// `series`, pushing each point's centre σ in mm (NaN where there is none) and whether the
-/// other sphere partly hid it onto `sigmas` per axis when asked (the growing phases and the
-/// leave-one-out refits, which call `series` for every frame, do not ask).
+/// What `series_with` says of each point besides its value: its centre's σ in mm (NaN where
+/// there is none), whether the other sphere partly hid it, and its radius's stray from its
+/// neighbours' in mm (`radius_misfit`).
+type Point = (f64, bool, f64);
+
+/// `series`, pushing each point's `Point` onto `sigmas` per axis when asked (the growing phases
+/// and the leave-one-out refits, which call `series` for every frame, do not ask).
 fn series_with(
     obs: &[FrameObs],
     views: &[View],
     s: usize,
     frames: &[usize],
-    mut sigmas: Option<&mut [Vec<(f64, bool)>; 3]>,
+    mut sigmas: Option<&mut [Vec<Point>; 3]>,
 ) -> [Series; 3] {
     let mut out: [Series; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let has_direct = views.iter().any(|v| v.kind == ViewKind::Direct);
@@ -78,12 +82,65 @@ fn series_with(
                 if let Some(sigmas) = sigmas.as_deref_mut() {
                     let sigma_mm =
                         m.sigma_px[0].hypot(m.sigma_px[1]) / 2f64.sqrt() / view.px_per_mm;
-                    sigmas[axis].push((sigma_mm, m.hidden_in_part.is_some()));
+                    sigmas[axis].push((
+                        sigma_mm,
+                        m.hidden_in_part.is_some(),
+                        m.radius_stray_px / view.px_per_mm,
+                    ));
                 }
             }
         }
     }
     out
+}
+
+/// How far the misfits its centres' radii show could move each axis's velocity of sphere `s`
+/// over `frames`, mm/s, were they all to push it the same way (`radius_misfit`: a centre is
+/// out by about its radius's stray, in a direction its fit does not say). Why in full and not
+/// in quadrature: the misfits that matter run in groups — a blurred neighbour's edge over the
+/// frames before contact, the view's border over the first ones — and one group's centres are
+/// out the same way, at one end of the phase, which a line fit takes for velocity; on seed
+/// 4112's defocused rig b's y velocity came out 10–17 mm/s off at 3–11σ that way. So within a
+/// run of consecutive frames whose strays go beyond the scatter, their effects add in full;
+/// separate runs, in quadrature. Each point's
+/// stray counts only beyond the strays' own scatter over the phase (1.4826 × their median
+/// magnitude): on a disc fitted well the stray is the radius's noise, which the line fit's σ
+/// already holds.
+pub(super) fn stray_velocity(
+    obs: &[FrameObs],
+    views: &[View],
+    s: usize,
+    frames: &[usize],
+) -> [f64; 3] {
+    let mut points: [Vec<Point>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    let series = series_with(obs, views, s, frames, Some(&mut points));
+    [0, 1, 2].map(|axis| {
+        let (ts, pts) = (&series[axis], &points[axis]);
+        if ts.len() < 3 || ts.len() != pts.len() {
+            return 0.0;
+        }
+        let mut magnitudes: Vec<f64> = pts.iter().map(|p| p.2.abs()).collect();
+        magnitudes.sort_by(f64::total_cmp);
+        let scatter = 1.4826 * magnitudes[magnitudes.len() / 2];
+        let n = ts.len() as f64;
+        let t_mean = ts.iter().map(|p| p.0).sum::<f64>() / n;
+        let stt: f64 = ts.iter().map(|p| (p.0 - t_mean).powi(2)).sum();
+        if stt <= 0.0 {
+            return 0.0;
+        }
+        // Within a run of consecutive misfits, in full; runs apart, in quadrature.
+        let (mut sum_sq, mut run) = (0.0, 0.0);
+        for (p, q) in ts.iter().zip(pts) {
+            let beyond = (q.2 * q.2 - scatter * scatter).max(0.0).sqrt();
+            if beyond > 0.0 {
+                run += (p.0 - t_mean).abs() * beyond / std::f64::consts::SQRT_2;
+            } else {
+                sum_sq += run * run;
+                run = 0.0;
+            }
+        }
+        (sum_sq + run * run).sqrt() / stt
+    })
 }
 
 /// The fewest frames both views must have seen a sphere in, in a phase, for their x velocities

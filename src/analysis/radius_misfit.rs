@@ -59,6 +59,7 @@ pub(super) fn widen(obs: &mut [FrameObs]) {
                 .collect();
             for (k, stray_px) in strays {
                 if let Some(m) = obs[k].spheres[s][vi].as_mut() {
+                    m.radius_stray_px = stray_px;
                     let add = 0.5 * stray_px * stray_px;
                     for sigma in m.sigma_px.iter_mut() {
                         *sigma = (*sigma * *sigma + add).sqrt();
@@ -93,6 +94,7 @@ mod tests {
             diameter_px,
             markers: Vec::new(),
             hidden_in_part: None,
+            radius_stray_px: 0.0,
         };
         FrameObs {
             index: k,

@@ -119,6 +119,7 @@ pub fn read(
             diameter_px: f64::NAN,
             markers: Vec::new(),
             hidden_in_part: None,
+            radius_stray_px: 0.0,
         });
     }
     if frames.is_empty() {

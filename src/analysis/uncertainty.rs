@@ -15,10 +15,11 @@ use super::tracking::FrameObs;
 /// frame's error is independent and alike; a frame that pulls a fit (a centre biased by the
 /// neighbouring sphere just before contact, say) breaks that. So the kinematic variance is the
 /// mean of the propagated one and a leave-one-frame-out jackknife of the whole derivation; the
-/// spin part is added from the spin fits' per-frame influences (`spin_variance`), and where a
-/// phase's x velocity differs between the views beyond its σ (`x_views`, mm/s per phase), that
-/// excess moved through the derivation, in full: neither the fit nor the jackknife over frames
-/// sees a bias the frames share.
+/// spin part is added from the spin fits' per-frame influences (`spin_variance`), and each
+/// phase's velocity bias its frames may share (`shared_bias`, mm/s per phase and axis: the
+/// views' disagreement on x, the misfits the centres' radii show) is moved through the
+/// derivation, in full: neither the fit nor the jackknife over frames sees a bias the frames
+/// share.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn combined_uncertainties(
     obs: &[FrameObs],
@@ -27,7 +28,7 @@ pub(super) fn combined_uncertainties(
     fits: &Fits,
     spins: Option<[&SpinFit; 4]>,
     bodies: Bodies,
-    x_views: &[Option<f64>; 4],
+    shared_bias: &[[f64; 3]; 4],
     contact_mm: f64,
     split: f64,
     g: f64,
@@ -62,16 +63,18 @@ pub(super) fn combined_uncertainties(
         }
         _ => vec![0.0; vk.len()],
     };
-    // The views' disagreement on each phase's x velocity, moved through the derivation.
+    // Each phase's shared velocity bias, per axis, moved through the derivation.
     let base = derive(fits, omega, bodies, contact_mm, g)?.to_vec();
     let mut view_var = vec![0.0; vk.len()];
-    for (k, excess) in x_views.iter().enumerate() {
-        let Some(excess) = excess else { continue };
+    for (k, axis, shift) in (0..4).flat_map(|k| (0..3).map(move |i| (k, i, shared_bias[k][i]))) {
+        if !(shift > 0.0 && shift.is_finite()) {
+            continue;
+        }
         let mut moved = *fits;
-        let Some(line) = moved[k].axes[0].as_mut() else {
+        let Some(line) = moved[k].axes[axis].as_mut() else {
             continue;
         };
-        line.v += excess;
+        line.v += shift;
         if let Ok(d) = derive(&moved, omega, bodies, contact_mm, g) {
             for (v, (a, b)) in view_var.iter_mut().zip(d.to_vec().iter().zip(&base)) {
                 *v += (a - b).powi(2);

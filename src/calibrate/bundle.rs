@@ -427,6 +427,7 @@ mod tests {
                         diameter_px: 13.7,
                         markers: Vec::new(),
                         hidden_in_part: None,
+                        radius_stray_px: 0.0,
                     });
                 }
                 phases[k].push(obs.len());

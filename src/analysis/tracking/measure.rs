@@ -179,6 +179,7 @@ pub(super) fn measure_blob(
             })
         },
         hidden_in_part: None,
+        radius_stray_px: 0.0,
     };
     Ok((m, f))
 }

@@ -40,6 +40,10 @@ pub struct Measurement {
     /// Fitted where the other sphere hides part of this disc in this view, and how; None for a
     /// disc seen whole. Such a centre's error is more than its fit's σ says (`overlap`).
     pub hidden_in_part: Option<HiddenInPart>,
+    /// How far the fitted radius strays from the same sphere's in the frames round it, px
+    /// (`radius_misfit`; 0 until it has looked): a misfit of the disc's model, already in
+    /// `sigma_px`, and one that neighbouring frames may share.
+    pub radius_stray_px: f64,
 }
 
 /// How a disc the other sphere partly hides was measured (`Measurement::hidden_in_part`).
@@ -588,6 +592,7 @@ impl Tracker {
                                     } else {
                                         HiddenInPart::Outline
                                     }),
+                                    radius_stray_px: 0.0,
                                 });
                                 self.memory[vi].last[s] = Some(f.centre);
                                 self.memory[vi].history[s].push((t, f.centre));
