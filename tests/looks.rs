@@ -266,8 +266,9 @@ fn a_phase_the_mirror_hardly_sees_takes_its_velocity_from_momentum() {
 /// off and centres up to 1 px off, claiming 0.1 px; before each centre's σ took in its radius's
 /// stray from its neighbours' (`radius_misfit`), 26–31 % of this rig's centres were within ±1σ
 /// and 10–12 % beyond 5σ, over eleven recordings (they differ by the relay's timing); after,
-/// 58–64 % and 2.4–3.8 %. (Short of honest still: the velocities this rig gives are out by up
-/// to 11σ in y and, once in CI, 9σ in x — docs/accuracy.md.)
+/// 58–64 % and 2.4–3.8 %. (Its velocities were out by up to 11σ in y and, once in CI, 9σ in x;
+/// with runs of such misfits in their σ, `phases::stray_velocity`, within 4.3σ over 46
+/// recordings, but only 44 % within ±1σ — docs/accuracy.md.)
 #[test]
 fn a_defocused_rigs_centres_carry_their_radius_misfit_in_their_sigma() {
     let t = tempfile::tempdir().unwrap();

@@ -95,17 +95,17 @@ fn series_with(
 }
 
 /// How far the misfits its centres' radii show could move each axis's velocity of sphere `s`
-/// over `frames`, mm/s, were they all to push it the same way (`radius_misfit`: a centre is
-/// out by about its radius's stray, in a direction its fit does not say). Why in full and not
-/// in quadrature: the misfits that matter run in groups — a blurred neighbour's edge over the
-/// frames before contact, the view's border over the first ones — and one group's centres are
-/// out the same way, at one end of the phase, which a line fit takes for velocity; on seed
-/// 4112's defocused rig b's y velocity came out 10–17 mm/s off at 3–11σ that way. So within a
-/// run of consecutive frames whose strays go beyond the scatter, their effects add in full;
-/// separate runs, in quadrature. Each point's
-/// stray counts only beyond the strays' own scatter over the phase (1.4826 × their median
-/// magnitude): on a disc fitted well the stray is the radius's noise, which the line fit's σ
-/// already holds.
+/// over `frames`, mm/s (`radius_misfit`: a centre is out by about its radius's stray, in a
+/// direction its fit does not say). Each point counts with its lever on the line fit's slope,
+/// (t − t̄)/Σ(t − t̄)², and only for its stray beyond the strays' own scatter over the phase
+/// (1.4826 × their median magnitude: on a disc fitted well the stray is the radius's noise,
+/// which the line fit's σ already holds). Within a run of consecutive frames whose strays go
+/// beyond that, in full; separate runs, in quadrature. Why in full: the misfits that matter run
+/// in groups — a blurred neighbour's edge over the frames before contact, the view's border over
+/// the first ones — and one group's centres are out the same way, at one end of the phase, which
+/// a line fit takes for velocity; on seed 4112's defocused rig b's y velocity came out 10–17 mm/s
+/// off at 3–11σ that way. (In full over the whole phase was too wide: 83 % of the bench's
+/// velocities within ±1σ.)
 pub(super) fn stray_velocity(
     obs: &[FrameObs],
     views: &[View],
