@@ -475,6 +475,12 @@ fn observations_once(
     )
     .map_err(impact_err)?;
     let t_c = split + d.tau_c;
+    if d.closest_mm > contact_mm {
+        warnings.push(format!(
+            "the fitted trajectories come no closer than {:.2} mm, but contact is at {contact_mm:.2} mm; the spheres' relative velocity changed as only a collision changes it, so the contact was taken where they come closest (their positions are biased by about the difference)",
+            d.closest_mm
+        ));
+    }
 
     // Axes some view measures, but not for every sphere in every phase: dropped by fit_all.
     let seen_axes: Vec<usize> = (0..3)
