@@ -742,6 +742,30 @@ mod tests {
     use super::*;
     use nalgebra::Rotation3;
 
+    /// Frame `k` of a synthetic recording at `dt` s a frame: sphere a measured at `centres_px`
+    /// in the views (σ 0.02 px, the default look's diameter, no markers) with its radius
+    /// straying by `radius_stray_px`; sphere b nowhere.
+    fn frame_of_a(k: usize, dt: f64, centres_px: [[f64; 2]; 2], radius_stray_px: f64) -> FrameObs {
+        let m = |px: [f64; 2]| {
+            Some(tracking::Measurement {
+                centre_px: px,
+                blob_centroid_px: px,
+                sigma_px: [0.02, 0.02],
+                diameter_px: 13.7,
+                markers: Vec::new(),
+                hidden_in_part: None,
+                radius_stray_px,
+            })
+        };
+        FrameObs {
+            index: k as u64,
+            frame_id: k as u64,
+            time_s: k as f64 * dt,
+            spheres: [centres_px.map(m).to_vec(), vec![None, None]],
+            position_mm: [None, None],
+        }
+    }
+
     #[test]
     fn an_axis_missing_in_one_phase_is_dropped_from_all_four() {
         let times: Vec<f64> = (0..10).map(|k| k as f64 * 1e-3).collect();
@@ -767,7 +791,6 @@ mod tests {
     /// then flying for 40 before the impact: only the flight is kept for the fit.
     #[test]
     fn frames_still_in_the_tube_are_left_out_of_the_flight() {
-        use crate::analysis::tracking::Measurement;
         let cfg = Config::default_config();
         let views = geometry::views(&cfg);
         let g = cfg.analysis.gravity_mm_s2;
@@ -780,24 +803,7 @@ mod tests {
                 let tau = (k as f64 - exit as f64) * dt;
                 let a = if k < exit { 0.2 * g } else { g };
                 let p = p_exit + v_exit * tau + V3::new(0.0, -0.5 * a * tau * tau, 0.0);
-                let m = |vi: usize| {
-                    Some(Measurement {
-                        centre_px: views[vi].project(&p),
-                        blob_centroid_px: views[vi].project(&p),
-                        sigma_px: [0.02, 0.02],
-                        diameter_px: 13.7,
-                        markers: Vec::new(),
-                        hidden_in_part: None,
-                        radius_stray_px: 0.0,
-                    })
-                };
-                FrameObs {
-                    index: k as u64,
-                    frame_id: k as u64,
-                    time_s: k as f64 * dt,
-                    spheres: [vec![m(0), m(1)], vec![None, None]],
-                    position_mm: [None, None],
-                }
+                frame_of_a(k, dt, [views[0].project(&p), views[1].project(&p)], 0.0)
             })
             .collect();
         let all: Vec<usize> = (0..70).collect();
@@ -819,7 +825,6 @@ mod tests {
     /// σ; the same phase with both views agreeing gives nothing to add.
     #[test]
     fn an_x_velocity_the_views_disagree_on_gives_its_excess() {
-        use crate::analysis::tracking::Measurement;
         let cfg = Config::default_config();
         let views = geometry::views(&cfg);
         let dt = 1e-3;
@@ -831,30 +836,11 @@ mod tests {
                     let p = V3::new(-20.0, 10.0, 0.0) + v * t;
                     // Centre noise of ±0.02 px, the same in every run of the test.
                     let wobble = 0.02 * ((k * 7919) % 13) as f64 / 6.0 - 0.02;
-                    let m = |vi: usize, drift_mm: f64| {
-                        let mut px = views[vi].project(&(p + V3::new(drift_mm, 0.0, 0.0)));
-                        px[0] += wobble;
-                        px[1] -= wobble;
-                        Some(Measurement {
-                            centre_px: px,
-                            blob_centroid_px: px,
-                            sigma_px: [0.02, 0.02],
-                            diameter_px: 13.7,
-                            markers: Vec::new(),
-                            hidden_in_part: None,
-                            radius_stray_px: 0.0,
-                        })
+                    let at = |vi: usize, drift_mm: f64| {
+                        let px = views[vi].project(&(p + V3::new(drift_mm, 0.0, 0.0)));
+                        [px[0] + wobble, px[1] - wobble]
                     };
-                    FrameObs {
-                        index: k as u64,
-                        frame_id: k as u64,
-                        time_s: t,
-                        spheres: [
-                            vec![m(0, 0.0), m(1, mirror_drift_mm_s * t)],
-                            vec![None, None],
-                        ],
-                        position_mm: [None, None],
-                    }
+                    frame_of_a(k, dt, [at(0, 0.0), at(1, mirror_drift_mm_s * t)], 0.0)
                 })
                 .collect()
         };
@@ -876,7 +862,6 @@ mod tests {
     /// alone, scattered through the phase, give next to nothing.
     #[test]
     fn a_run_of_misfit_radii_at_one_end_of_a_phase_bounds_its_velocity() {
-        use crate::analysis::tracking::Measurement;
         let cfg = Config::default_config();
         let views = geometry::views(&cfg);
         let dt = 1e-3;
@@ -885,25 +870,12 @@ mod tests {
             (0..30)
                 .map(|k| {
                     let p = V3::new(-20.0, 10.0, 0.0) + v * (k as f64 * dt);
-                    let m = |vi: usize| {
-                        let px = views[vi].project(&p);
-                        Some(Measurement {
-                            centre_px: px,
-                            blob_centroid_px: px,
-                            sigma_px: [0.02, 0.02],
-                            diameter_px: 13.7,
-                            markers: Vec::new(),
-                            hidden_in_part: None,
-                            radius_stray_px: stray_px(k),
-                        })
-                    };
-                    FrameObs {
-                        index: k as u64,
-                        frame_id: k as u64,
-                        time_s: k as f64 * dt,
-                        spheres: [vec![m(0), m(1)], vec![None, None]],
-                        position_mm: [None, None],
-                    }
+                    frame_of_a(
+                        k,
+                        dt,
+                        [views[0].project(&p), views[1].project(&p)],
+                        stray_px(k),
+                    )
                 })
                 .collect()
         };
