@@ -346,21 +346,9 @@ const CHI2_4SIGMA: [f64; 3] = [16.0, 19.33, 22.06];
 /// Whether the spheres' relative velocity changed across the split beyond `CHI2_4SIGMA` (χ²
 /// over the axes every phase fitted): flights that never touched keep it, up to noise.
 fn velocities_changed(fits: &Fits) -> bool {
-    let mut chi2 = 0.0;
-    let mut dof = 0;
-    for i in 0..3 {
-        let lines = [0, 1, 2, 3].map(|k| fits[k].axes[i].as_ref());
-        let [Some(a0), Some(b0), Some(a1), Some(b1)] = lines else {
-            continue;
-        };
-        let change = (b1.v - a1.v) - (b0.v - a0.v);
-        let var: f64 = lines.iter().flatten().map(|l| l.cov[(1, 1)]).sum();
-        if var > 0.0 && var.is_finite() {
-            chi2 += change * change / var;
-            dof += 1;
-        }
-    }
-    dof > 0 && chi2 > CHI2_4SIGMA[dof - 1]
+    // (b after − a after) − (b before − a before).
+    super::momentum::combination_chi2(fits, [1.0, -1.0, -1.0, 1.0])
+        .is_some_and(|(chi2, dof)| chi2 > CHI2_4SIGMA[dof - 1])
 }
 
 /// Variance of a fitted trajectory's position τ after its reference time, per axis (0 where the

@@ -10,10 +10,10 @@ use super::kinematics::{Fits, SideFit};
 /// χ² for 3 degrees of freedom at 3σ (two-sided 99.73 %), and for 2 and 1 (a 2-D result).
 const CHI2_3SIGMA: [f64; 3] = [9.0, 11.83, 14.16];
 
-/// Per axis measured in all four phases: the momentum residual Σ A_k·v_k with A = (−m_a, −m_b,
-/// m_a, m_b) over (a before, b before, a after, b after), and its variance from the fits'.
-fn residuals(fits: &Fits, masses: [f64; 2]) -> Vec<(usize, f64, f64)> {
-    let a = [-masses[0], -masses[1], masses[0], masses[1]];
+/// Per axis measured in all four phases: Σ A_k·v_k over (a before, b before, a after, b after)
+/// and its variance from the fits'. Momentum's residual is A = (−m_a, −m_b, m_a, m_b); the
+/// change of the relative velocity across the split (`kinematics`) is A = (1, −1, −1, 1).
+pub(super) fn combination(fits: &Fits, a: [f64; 4]) -> Vec<(usize, f64, f64)> {
     (0..3)
         .filter_map(|i| {
             let lines: Vec<_> = fits.iter().map(|f| f.axes[i]).collect::<Option<_>>()?;
@@ -28,16 +28,22 @@ fn residuals(fits: &Fits, masses: [f64; 2]) -> Vec<(usize, f64, f64)> {
         .collect()
 }
 
+/// χ² of `combination` over its axes, and their number; None without an axis.
+pub(super) fn combination_chi2(fits: &Fits, a: [f64; 4]) -> Option<(f64, usize)> {
+    let res = combination(fits, a);
+    (!res.is_empty()).then(|| (res.iter().map(|(_, r, var)| r * r / var).sum(), res.len()))
+}
+
+/// The momentum residual's coefficients (`combination`).
+fn momentum_coefficients(masses: [f64; 2]) -> [f64; 4] {
+    [-masses[0], -masses[1], masses[0], masses[1]]
+}
+
 /// The check: χ² of the measured velocities against momentum conservation and its degrees of
 /// freedom (the axes measured in all four phases), and whether it passes at 3σ. None without an
 /// axis to check.
 pub(super) fn check(fits: &Fits, masses: [f64; 2]) -> Option<(f64, usize, bool)> {
-    let res = residuals(fits, masses);
-    if res.is_empty() {
-        return None;
-    }
-    let chi2: f64 = res.iter().map(|(_, r, var)| r * r / var).sum();
-    let dof = res.len();
+    let (chi2, dof) = combination_chi2(fits, momentum_coefficients(masses))?;
     Some((chi2, dof, chi2 <= CHI2_3SIGMA[dof - 1]))
 }
 
@@ -54,7 +60,7 @@ impl Momentum {
     /// The combination the fits `fits` call for.
     pub(super) fn of(fits: &Fits, masses: [f64; 2]) -> Momentum {
         let mut weights = [[None; 3]; 4];
-        for (i, _, _) in residuals(fits, masses) {
+        for (i, _, _) in combination(fits, momentum_coefficients(masses)) {
             for k in 0..4 {
                 weights[k][i] = fits[k].axes[i].map(|l| (l.cov[(1, 1)], l.cov[(0, 1)]));
             }
