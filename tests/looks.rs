@@ -111,6 +111,50 @@ fn spheres_that_pass_in_front_of_each_other_keep_their_names() {
     }
 }
 
+/// A contact normal 45° out of the view's plane, towards the direct camera: after the impact the
+/// spheres separate mostly along the direct camera's axis, one partly hiding the other in the
+/// direct view for the rest of the recording, while the mirror sees them apart. Only the direct
+/// view measures y. Before the direct view's one silhouette was split by the mirror's x, that
+/// whole phase had no y: the report was 2-D, with no spin, ψ1, ψ2 or β (as on an independent
+/// render, validation v03).
+#[test]
+fn spheres_one_behind_the_other_in_the_direct_view_after_the_impact_keep_their_y() {
+    let t = tempfile::tempdir().unwrap();
+    let (report, truth) = run_config(
+        t.path(),
+        "[sim]\nseed = 11\nlook_family = \"side_lit\"\nimpact_offset = 0.05\nimpact_offset_z = 0.7\n",
+    );
+    let warnings = &report["quality"]["warnings"];
+    assert_eq!(report["dimensionality"], "3d", "{warnings}");
+    for key in ["e", "psi1", "psi2", "beta"] {
+        let v = report[key]["value"]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key} measured: {warnings}"));
+        let s = report[key]["uncertainty"].as_f64().unwrap();
+        let tv = truth[key].as_f64().unwrap();
+        assert!(
+            (v - tv).abs() < 5.0 * s && (v - tv).abs() < 0.05,
+            "{key}: {v:.4} ± {s:.4}, truth {tv:.4}"
+        );
+    }
+    // y after the impact, from the direct view's discs one behind the other.
+    for s in ["a", "b"] {
+        let v = report["spheres"][s]["velocity_post_mm_s"]["value"][1]
+            .as_f64()
+            .unwrap();
+        let sd = report["spheres"][s]["velocity_post_mm_s"]["uncertainty"][1]
+            .as_f64()
+            .unwrap();
+        let tv = truth["spheres"][s]["post"]["velocity_mm_s"][1]
+            .as_f64()
+            .unwrap();
+        assert!(
+            sd > 0.0 && (v - tv).abs() < 5.0 * sd,
+            "{s}'s y velocity after: {v:.1} ± {sd:.1} mm/s, truth {tv:.1}"
+        );
+    }
+}
+
 /// Tube ends and a ruler in view (the cluttered family): the spheres leave their tubes in front
 /// of the tube ends and cross the ruler, hiding what stands behind them. Where, by the truth,
 /// both are out of their tubes, wholly inside a view and apart, both are measured and their

@@ -66,16 +66,27 @@ fn series_with(
     let mut out: [Series; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let has_direct = views.iter().any(|v| v.kind == ViewKind::Direct);
     for f in frames.iter().map(|&k| &obs[k]) {
+        // The direct view's x where it measured the sphere in this frame; the mirror's
+        // (refined to agree with it) where it did not, and where the other sphere hid part of
+        // the direct view's disc but not the mirror's (the hidden fit is the worse of the two).
+        let seen = |whole: bool, direct: bool| {
+            views.iter().zip(&f.spheres[s]).any(|(v, m)| {
+                (v.kind == ViewKind::Direct) == direct
+                    && m.as_ref()
+                        .is_some_and(|m| !whole || m.hidden_in_part.is_none())
+            })
+        };
+        let (direct_whole, direct_any) = (seen(true, true), seen(false, true));
+        let other_whole = seen(true, false);
         for (vi, view) in views.iter().enumerate() {
             let Some(m) = &f.spheres[s][vi] else { continue };
-            // The direct view's x where it measured the sphere in this frame; the mirror's
-            // (refined to agree with it) where it did not.
-            let direct_saw = views
-                .iter()
-                .zip(&f.spheres[s])
-                .any(|(v, m)| v.kind == ViewKind::Direct && m.is_some());
+            let skip_x = if view.kind == ViewKind::Direct {
+                !direct_whole && other_whole
+            } else {
+                has_direct && (direct_whole || (direct_any && m.hidden_in_part.is_some()))
+            };
             for (axis, val) in view.unproject(m.centre_px, f.position_mm[s].as_ref()) {
-                if axis == 0 && has_direct && direct_saw && view.kind != ViewKind::Direct {
+                if axis == 0 && skip_x {
                     continue;
                 }
                 out[axis].push((f.time_s, val));

@@ -2,13 +2,11 @@
 //! sub-pixel circle fit, and the measurements are labelled a or b (a has the smaller world x, as
 //! the report contract says). What cannot be measured is listed with the reason.
 
-use super::circle::{
-    profile_fit_behind, profile_fit_pair, rings_meet, split_pair, CircleFit, DotMask,
-};
+use super::circle::{profile_fit_pair, rings_meet, CircleFit, DotMask};
 use super::detect::{find_blobs, levels, Blob, ViewLevels};
 use super::geometry::View;
 use super::image::GreyImage;
-use super::markers::{self, MarkerObs};
+use super::markers::MarkerObs;
 use super::report::Unmeasured;
 use super::stages::{self, Stage};
 use crate::config::Config;
@@ -18,14 +16,14 @@ mod ahead;
 mod cross;
 mod identity;
 mod measure;
+mod split;
 #[cfg(test)]
 mod tests;
 mod walk;
 
 pub use ahead::FitMemo;
 use identity::{
-    assign, assign_by_continuity, assign_by_prediction, assign_by_x, extrapolate, label_split,
-    ViewMemory,
+    assign, assign_by_continuity, assign_by_prediction, assign_by_x, extrapolate, ViewMemory,
 };
 use measure::{fit_from_track, measure_blob, measure_touching, BlobFit};
 
@@ -163,8 +161,9 @@ impl Tracker {
     fn measure_frame(&mut self, cx: &FrameCtx) -> Spheres {
         let mut spheres: Spheres = [vec![None; cx.views.len()], vec![None; cx.views.len()]];
         let mut deferred: Option<(Blob, ViewLevels)> = None;
+        let mut primary_lone: Option<(Blob, ViewLevels)> = None;
         for (vi, view) in cx.views.iter().enumerate() {
-            self.measure_view(cx, vi, view, &mut spheres, &mut deferred);
+            self.measure_view(cx, vi, view, &mut spheres, &mut deferred, &mut primary_lone);
         }
         // Held measurements name nothing yet: out of the frame while the views are checked
         // against each other, in it while the memory learns where the spheres went.
@@ -178,6 +177,9 @@ impl Tracker {
             self.label_by_secondary_x(cx, &blob, &lv, &mut spheres);
         }
         self.check_primary_against_secondary(cx, &mut spheres);
+        if let Some((blob, lv)) = primary_lone {
+            self.split_primary_by_secondary(cx, &blob, &lv, &mut spheres);
+        }
         for (vi, [a, b]) in &mut provisional {
             spheres[0][*vi] = a.take();
             spheres[1][*vi] = b.take();
@@ -220,7 +222,8 @@ impl Tracker {
 
     /// One view of one frame: blobs, their a/b labels (by x from the primary view, continuity,
     /// or position), sub-pixel fits, and the reasons for what could not be measured. A lone
-    /// blob the primary view cannot label yet is left in `deferred` for the secondary's x.
+    /// blob the primary view cannot label yet is left in `deferred` for the secondary's x, and
+    /// the primary's one silhouette in `primary_lone` (`split_primary_by_secondary`).
     fn measure_view(
         &mut self,
         cx: &FrameCtx,
@@ -228,6 +231,7 @@ impl Tracker {
         view: &View,
         spheres: &mut Spheres,
         deferred: &mut Option<(Blob, ViewLevels)>,
+        primary_lone: &mut Option<(Blob, ViewLevels)>,
     ) {
         let dots = cx.dots.get(&(cx.i, vi)).map(Vec::as_slice).unwrap_or(&[]);
         let radius = [0, 1].map(|s| cx.cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
@@ -403,6 +407,9 @@ impl Tracker {
         if vi == 0 && blobs.len() == 1 && !blobs[0].merged && assigned.iter().all(|x| x.is_none()) {
             *deferred = Some((blobs[0].clone(), lv));
         }
+        if vi == 0 && blobs.len() == 1 && !touching {
+            *primary_lone = Some((blobs[0].clone(), lv));
+        }
         for (s, blob) in assigned.iter().enumerate() {
             let Some(b) = blob else { continue };
             let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
@@ -477,143 +484,6 @@ impl Tracker {
         }
     }
 
-    /// A secondary view whose one silhouette holds both spheres: split into two circles,
-    /// labelled by the primary view's x or this view's memory, refitted with the front disc
-    /// hiding the back one where the primary view says which is in front. Whether it handled
-    /// the view (else the view is measured blob by blob).
-    #[allow(clippy::too_many_arguments)]
-    fn measure_split_silhouette(
-        &mut self,
-        cx: &FrameCtx,
-        vi: usize,
-        view: &View,
-        lv: &ViewLevels,
-        dots: &[DotMask],
-        blobs: &[Blob],
-        primary_x: [Option<f64>; 2],
-        contact_mm: f64,
-        r_mean: f64,
-        spheres: &mut Spheres,
-    ) -> bool {
-        if vi > 0 && blobs.len() == 1 && !blobs[0].clipped {
-            let close = matches!(primary_x, [Some(xa), Some(xb)] if (xa - xb).abs() < contact_mm);
-            if blobs[0].merged || close {
-                let t = cx.t;
-                let r_seen: Vec<f64> = self.memory[vi].radius.iter().flatten().copied().collect();
-                let r_fit = if r_seen.is_empty() {
-                    r_mean
-                } else {
-                    r_seen.iter().sum::<f64>() / r_seen.len() as f64
-                };
-                let fits = stages::timed(Stage::Circles, || {
-                    split_pair(
-                        cx.img,
-                        view,
-                        blobs[0].centroid,
-                        r_fit,
-                        lv.background,
-                        lv.peak,
-                    )
-                });
-                let fresh_x = [0, 1].map(|s| {
-                    spheres[s][0]
-                        .as_ref()
-                        .map(|m| world_x(&cx.views[0], m.centre_px))
-                        .or_else(|| extrapolate(&self.x_history[s], t, self.recent_s))
-                });
-                let predicted = [0, 1].map(|s| self.memory[vi].predict(s, t, self.recent_s));
-                let labels = label_split(&fits, view, fresh_x, predicted, r_mean);
-                if labels.iter().any(|l| l.is_some()) {
-                    // The sphere nearer this view's camera, as the primary view places them
-                    // along this view's line of sight: all of its disc is its own, so its
-                    // dots are its own too. The other's dots near the overlap may be either.
-                    let fi = view.facing.iamax();
-                    let depth = |s: usize| -> Option<f64> {
-                        let m = spheres[s][0].as_ref()?;
-                        cx.views[0]
-                            .unproject(m.centre_px, None)
-                            .iter()
-                            .find(|(axis, _)| *axis == fi)
-                            .map(|(_, x)| x * view.facing[fi])
-                    };
-                    let front = match (depth(0), depth(1)) {
-                        (Some(da), Some(db)) if (da - db).abs() > 0.5 * contact_mm => {
-                            Some(if da > db { 0 } else { 1 })
-                        }
-                        _ => None,
-                    };
-                    // The split circles rest on the outline; with the front one known, both
-                    // are refitted on the grey levels, the front disc hiding the back one.
-                    // A refit that moves a disc by more than a pixel has slid along a crescent
-                    // too thin to hold it (`MAX_REFIT_MOVE_PX`).
-                    let behind = match (labels, front) {
-                        ([Some(fa), Some(fb)], Some(fr)) => stages::timed(Stage::Circles, || {
-                            profile_fit_behind(cx.img, view, [fa, fb], fr, lv.background, dots)
-                        })
-                        .filter(|pair| {
-                            pair.iter().zip([fa, fb]).all(|(n, o)| {
-                                (n.centre[0] - o.centre[0]).hypot(n.centre[1] - o.centre[1])
-                                    < MAX_REFIT_MOVE_PX
-                            })
-                        }),
-                        _ => None,
-                    };
-                    let labels: [Option<&CircleFit>; 2] = match &behind {
-                        Some(pair) => [Some(&pair[0]), Some(&pair[1])],
-                        None => labels,
-                    };
-                    for (s, f) in labels.iter().enumerate() {
-                        match f {
-                            Some(f) => {
-                                let dots = if front == Some(s) {
-                                    stages::timed(Stage::Markers, || {
-                                        markers::find(
-                                            cx.img,
-                                            view,
-                                            f,
-                                            cx.cfg.spheres.sphere(s).0 / 2.0,
-                                            cx.cfg.analysis.marker_diameter_mm,
-                                            lv.noise_sigma,
-                                        )
-                                    })
-                                } else {
-                                    Vec::new()
-                                };
-                                spheres[s][vi] = Some(Measurement {
-                                    centre_px: f.centre,
-                                    // The thesis baseline would click this disc's
-                                    // centre, not the merged silhouette's.
-                                    blob_centroid_px: f.centre,
-                                    sigma_px: f.centre_sigma,
-                                    diameter_px: 2.0 * f.radius,
-                                    markers: dots,
-                                    hidden_in_part: Some(if behind.is_some() {
-                                        HiddenInPart::Crescent
-                                    } else {
-                                        HiddenInPart::Outline
-                                    }),
-                                    radius_stray_px: 0.0,
-                                });
-                                self.memory[vi].last[s] = Some(f.centre);
-                                self.memory[vi].history[s].push((t, f.centre));
-                            }
-                            None => self.unmeasured.push(Unmeasured {
-                                frame: cx.i as u64,
-                                view: view.kind.name().into(),
-                                reason: format!(
-                                    "{}: hidden by the other sphere in this view",
-                                    ["a", "b"][s]
-                                ),
-                            }),
-                        }
-                    }
-                    return true;
-                }
-            }
-        }
-        false
-    }
-
     /// The frame's measurements into the memory: the primary view's x of each sphere, and per
     /// view whether both were seen and the direction from a to b.
     fn remember(&mut self, cx: &FrameCtx, spheres: &Spheres) {
@@ -641,12 +511,3 @@ impl Tracker {
 /// How many frames a secondary view's own tracks carry identity without a measurement
 /// (`identity::assign_by_prediction`, which also asks that the labelling be unambiguous).
 const TRACK_GAP_FRAMES: f64 = 20.0;
-
-/// How far the grey-level refit of a split silhouette may move a disc from the split's own
-/// circle and still be taken, px (`circle::profile_fit_behind`): a pixel, as for any grey-level
-/// fit from its start. It was a fifth, on the belief that the outline split is right to
-/// hundredths; under a side light or shading it is 0.4–0.7 px off, so the refit that corrects
-/// it was thrown away. Same 38 varied-look recordings, 0.2 → 1 px: centre RMS 0.0759 → 0.0703
-/// px (paint 0.039 → 0.029), e's p95 0.034 → 0.019, ψ2's p95 0.075 → 0.039; the independent
-/// renders unchanged.
-const MAX_REFIT_MOVE_PX: f64 = 1.0;
