@@ -58,7 +58,7 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
         if let Some(f) = &r.failed {
             let _ = writeln!(
                 s,
-                "  not analysed: seed {}, look {}, tube {}°, offset {}, σ {}, {}×{}: {f}",
+                "  not analysed: seed {}, look {}, tube {}°, offset {:.2}, σ {}, {}×{}: {f}",
                 c.seed,
                 r.look_family,
                 c.tube_angle_deg,
@@ -100,7 +100,7 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
         let worst_v = r.vel_rel.iter().copied().fold(0.0, f64::max);
         let _ = writeln!(
             s,
-            "{:>5} {:<10} {:>6} {:>6} {:>4} {:>9} {:>7.3} {} {:>7.4} {} {} {} {:>7.3} {:>9.3}",
+            "{:>5} {:<10} {:>6} {:>6.2} {:>4} {:>9} {:>7.3} {} {:>7.4} {} {} {} {:>7.3} {:>9.3}",
             c.seed,
             r.look_family,
             c.tube_angle_deg,
@@ -257,7 +257,7 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
         errs.sort_by(f64::total_cmp);
         let _ = writeln!(
             s,
-            "e on the goals' data (240×192, σ = 2 grey levels; {} experiments): median |Δe| {:.4}, max {max:.4} (seed {}, {}°, offset {}); {} above 0.03",
+            "e on the goals' data (240×192, σ = 2 grey levels; {} experiments): median |Δe| {:.4}, max {max:.4} (seed {}, {}°, offset {:.2}); {} above 0.03",
             errs.len(),
             errs[errs.len() / 2],
             worst.seed,
