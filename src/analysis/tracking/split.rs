@@ -15,6 +15,7 @@ use super::{world_x, FrameCtx, HiddenInPart, Measurement, Spheres, Tracker};
 use crate::analysis::circle::{profile_fit_behind, split_pair, CircleFit, DotMask};
 use crate::analysis::detect::{Blob, ViewLevels};
 use crate::analysis::geometry::View;
+use crate::analysis::image::GreyImage;
 use crate::analysis::markers;
 use crate::analysis::report::Unmeasured;
 use crate::analysis::stages::{self, Stage};
@@ -151,44 +152,52 @@ impl Tracker {
             }
             _ => None,
         };
-        // Where the outline gives no two circles in the primary view (a side lamp's dark limb
-        // leaves too little of it: on a side-lit render every other frame), the discs are
-        // started where the view's own tracks put them, if those agree with the other view's x
-        // on which is which. Only there: without it the primary has no y in those frames. In a
-        // secondary view the frames it misses cost only some of its z, and fits from tracks
-        // there (the mirror, before and after oblique impacts) put velocities off by up to
-        // 6 % at 5σ on the bench's varied looks.
-        let track_starts: Option<[CircleFit; 2]> = match (labels, predicted, front) {
-            ([Some(_), Some(_)], _, _) => None,
-            (_, [Some(pa), Some(pb)], Some(_)) if vi == 0 => {
-                let r = [0, 1].map(|k| self.memory[vi].radius[k].unwrap_or(r_fit));
-                let starts = [CircleFit::start_at(pa, r[0]), CircleFit::start_at(pb, r[1])];
-                let named = label_split(&starts, view, other.x_mm, [None, None], r_mean);
-                let in_order = matches!(named, [Some(a), Some(b)]
-                    if std::ptr::eq(a, &starts[0]) && std::ptr::eq(b, &starts[1]));
-                in_order.then_some(starts)
+        // Starts for the grey-level refit, tried in turn until one holds: the split's circles;
+        // then, in the primary view only, where the view's own tracks put the discs (if those
+        // agree with the other view's x on which is which), and where the other view's x and
+        // the silhouette's own extent put them (`starts_from_x`). Why the primary: there the
+        // frames without a split have no y at all; on a side-lit sphere the outline misses the
+        // dark limb, so the split gives no two circles (every other frame of a side-lit hw-sim
+        // recording) or circles 1.3 px towards the lamp, beyond what the refit may move (a
+        // synthetic pair lit from 30°, `tracking::tests`). In a secondary view the frames it
+        // misses cost only some of its z, and fits from tracks there (the mirror, before and
+        // after oblique impacts) put velocities off by up to 6 % at 5σ on the bench's varied
+        // looks.
+        let mut starts: Vec<[CircleFit; 2]> = Vec::new();
+        if let [Some(fa), Some(fb)] = labels {
+            starts.push([*fa, *fb]);
+        }
+        if vi == 0 && front.is_some() {
+            let r = [0, 1].map(|k| self.memory[vi].radius[k].unwrap_or(r_fit));
+            if let [Some(pa), Some(pb)] = predicted {
+                let from_tracks = [CircleFit::start_at(pa, r[0]), CircleFit::start_at(pb, r[1])];
+                let named = label_split(&from_tracks, view, other.x_mm, [None, None], r_mean);
+                if matches!(named, [Some(a), Some(b)]
+                    if std::ptr::eq(a, &from_tracks[0]) && std::ptr::eq(b, &from_tracks[1]))
+                {
+                    starts.push(from_tracks);
+                }
             }
-            _ => None,
-        };
-        let starts: Option<[&CircleFit; 2]> = match (labels, &track_starts) {
-            ([Some(fa), Some(fb)], _) => Some([fa, fb]),
-            (_, Some([sa, sb])) => Some([sa, sb]),
-            _ => None,
-        };
-        // The split circles rest on the outline; with the front one known, both are refitted
-        // on the grey levels, the front disc hiding the back one. A refit that moves a disc by
-        // more than a pixel has slid along a crescent too thin to hold it (`MAX_REFIT_MOVE_PX`).
-        let behind = match (starts, front) {
-            (Some([fa, fb]), Some(fr)) => stages::timed(Stage::Circles, || {
-                profile_fit_behind(cx.img, view, [fa, fb], fr, lv.background, dots)
-            })
-            .filter(|pair| {
-                pair.iter().zip([fa, fb]).all(|(n, o)| {
-                    (n.centre[0] - o.centre[0]).hypot(n.centre[1] - o.centre[1]) < MAX_REFIT_MOVE_PX
+            if let [Some(xa), Some(xb)] = other.x_mm {
+                starts.extend(starts_from_x(cx.img, view, blob, lv, [xa, xb], r));
+            }
+        }
+        // With the front one known, both discs are refitted on the grey levels, the front disc
+        // hiding the back one. A refit that moves a disc by more than a pixel from its start
+        // has slid along a crescent too thin to hold it (`MAX_REFIT_MOVE_PX`).
+        let behind = front.and_then(|fr| {
+            starts.iter().find_map(|[fa, fb]| {
+                stages::timed(Stage::Circles, || {
+                    profile_fit_behind(cx.img, view, [fa, fb], fr, lv.background, dots)
                 })
-            }),
-            _ => None,
-        };
+                .filter(|pair| {
+                    pair.iter().zip([fa, fb]).all(|(n, o)| {
+                        (n.centre[0] - o.centre[0]).hypot(n.centre[1] - o.centre[1])
+                            < MAX_REFIT_MOVE_PX
+                    })
+                })
+            })
+        });
         if labels.iter().all(|l| l.is_none()) && behind.is_none() {
             return false;
         }
@@ -240,6 +249,82 @@ impl Tracker {
         }
         true
     }
+}
+
+/// Starts for the two discs of `view`'s one silhouette from the world x the other view measured:
+/// each disc's u where its x images in this view, and its v the middle of the silhouette's run
+/// down the columns on its far side from the other disc (0.3–0.75 radii out), which the other
+/// disc does not reach while they are at least 0.7 radii apart (`profile_fit_behind` needs
+/// three quarters). Each column's run is where it is brighter than halfway between
+/// the background and its own brightest pixel, so a lamp's shading or a highlight moves it
+/// little. None where a disc has fewer than two such columns whose run is at least a radius long.
+fn starts_from_x(
+    img: &GreyImage,
+    view: &View,
+    blob: &Blob,
+    lv: &ViewLevels,
+    x_mm: [f64; 2],
+    radius_px: [f64; 2],
+) -> Option<[CircleFit; 2]> {
+    let base = view.solve(blob.centroid, None);
+    let at_x = |x: f64| {
+        let mut p = base;
+        p.x = x;
+        view.project(&p)
+    };
+    let centres = [at_x(x_mm[0]), at_x(x_mm[1])];
+    let [_, v_top, _, v_bottom] = blob.extent_px;
+    let rows = v_top.saturating_sub(2)..(v_bottom + 3).min(img.height);
+    let v_of = |s: usize| -> Option<f64> {
+        let (u_s, r) = (centres[s][0], radius_px[s]);
+        let away = if u_s < centres[1 - s][0] { -1.0 } else { 1.0 };
+        let mut mids: Vec<f64> = Vec::new();
+        for k in 1..=4 {
+            let u = (u_s + away * r * (0.15 + 0.15 * k as f64)).round();
+            if u < 0.0 || u >= img.width as f64 || !view.contains(u, blob.centroid[1]) {
+                continue;
+            }
+            let col: Vec<(usize, f64)> = rows
+                .clone()
+                .map(|v| (v, img.at(u as usize, v) as f64))
+                .collect();
+            let top = col.iter().map(|c| c.1).fold(f64::MIN, f64::max);
+            let level = lv.background + 0.5 * (top - lv.background);
+            if top <= lv.background + 3.0 * lv.noise_sigma {
+                continue;
+            }
+            // The run's ends, each interpolated between the pixels either side of `level`.
+            let first = col.iter().position(|c| c.1 >= level)?;
+            let last = col.len() - 1 - col.iter().rev().position(|c| c.1 >= level)?;
+            let cross = |i: usize, j: usize| {
+                let (a, b) = (col[i], col[j]);
+                a.0 as f64 + (level - a.1) / (b.1 - a.1) * (b.0 as f64 - a.0 as f64)
+            };
+            let start = if first > 0 {
+                cross(first - 1, first)
+            } else {
+                col[0].0 as f64
+            };
+            let end = if last + 1 < col.len() {
+                cross(last, last + 1)
+            } else {
+                col[last].0 as f64
+            };
+            if end - start >= r {
+                mids.push(0.5 * (start + end));
+            }
+        }
+        if mids.len() < 2 {
+            return None;
+        }
+        mids.sort_by(f64::total_cmp);
+        Some(0.5 * (mids[(mids.len() - 1) / 2] + mids[mids.len() / 2]))
+    };
+    let (va, vb) = (v_of(0)?, v_of(1)?);
+    Some([
+        CircleFit::start_at([centres[0][0], va], radius_px[0]),
+        CircleFit::start_at([centres[1][0], vb], radius_px[1]),
+    ])
 }
 
 /// Each sphere's depth along `view`'s line of sight as view `oi` measured it in this frame,
