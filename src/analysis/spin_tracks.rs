@@ -64,6 +64,12 @@ struct Problem<'a> {
     /// Per track, each sighting's offset Jacobian (`offset_jacobian` for the lifted model, the
     /// identity otherwise): fixed by the sightings, so made once, not on every evaluation.
     jacs: Vec<Vec<Matrix3<f64>>>,
+    /// The distinct τ of all sightings, and per track each sighting's index among them: the
+    /// tracks of one phase share their frames, so each evaluation makes one rotation a frame,
+    /// not one a sighting (the rotations were a fifth of the fit's time on the independent
+    /// renders). The same τ gives the same rotation, bit for bit.
+    taus: Vec<f64>,
+    tau_of: Vec<Vec<usize>>,
     /// Whether each view's sightings carry an offset, fitted too, and of which model.
     offsets: Offsets,
 }
@@ -77,13 +83,15 @@ impl Problem<'_> {
         let mut per_track = Vec::with_capacity(self.tracks.len());
         // Per view: A b = c, the offset's normal equations with the places eliminated.
         let mut normal: BTreeMap<usize, (Matrix3<f64>, V3)> = BTreeMap::new();
-        for (t, jacs) in self.tracks.iter().zip(&self.jacs) {
-            let rots: Vec<Rotation3<f64>> = t
-                .iter()
-                .map(|(_, tau)| Rotation3::from_scaled_axis(omega * *tau))
-                .collect();
+        let all_rots: Vec<Rotation3<f64>> = self
+            .taus
+            .iter()
+            .map(|tau| Rotation3::from_scaled_axis(omega * *tau))
+            .collect();
+        for ((t, jacs), idx) in self.tracks.iter().zip(&self.jacs).zip(&self.tau_of) {
+            let rots = || idx.iter().map(|&i| &all_rots[i]);
             let (mut sum, mut m, mut wsum) = (V3::zeros(), Matrix3::zeros(), 0.0);
-            for (((s, _), r), j) in t.iter().zip(&rots).zip(jacs) {
+            for (((s, _), r), j) in t.iter().zip(rots()).zip(jacs) {
                 sum += s.weight * r.inverse_transform_vector(&s.rel_mm);
                 m += s.weight * r.matrix().transpose() * j;
                 wsum += s.weight;
@@ -94,13 +102,13 @@ impl Problem<'_> {
                 let (a, c) = normal
                     .entry(view)
                     .or_insert_with(|| (Matrix3::zeros(), V3::zeros()));
-                for (((s, _), r), j) in t.iter().zip(&rots).zip(jacs) {
+                for (((s, _), r), j) in t.iter().zip(rots()).zip(jacs) {
                     let e = j - r.matrix() * m;
                     *a += s.weight * e.transpose() * e;
                     *c += s.weight * e.transpose() * (s.rel_mm - r * p);
                 }
             }
-            per_track.push((rots, jacs, p, m));
+            per_track.push((idx, jacs, p, m));
         }
         // An offset along the spin axis is a place's own component: nothing fixes it, and the
         // small ridge sets it to zero.
@@ -112,13 +120,17 @@ impl Problem<'_> {
                 (v, b)
             })
             .collect();
-        for (t, (rots, jacs, p, m)) in self.tracks.iter().zip(&per_track) {
+        for (t, (idx, jacs, p, m)) in self.tracks.iter().zip(&per_track) {
             let b = offsets
                 .get(&t[0].0.track.0)
                 .copied()
                 .unwrap_or_else(V3::zeros);
             let place = p - m * b;
-            for (((s, _), r), j) in t.iter().zip(rots).zip(jacs.iter()) {
+            for (((s, _), r), j) in t
+                .iter()
+                .zip(idx.iter().map(|&i| &all_rots[i]))
+                .zip(jacs.iter())
+            {
                 let d = (s.rel_mm - r * place - j * b) * s.weight.sqrt();
                 out.extend_from_slice(d.as_slice());
             }
@@ -375,10 +387,27 @@ fn build(kept: &[Sighting], offsets: Offsets) -> Option<Problem<'_>> {
                 .collect()
         })
         .collect();
+    let mut taus: Vec<f64> = tracks.iter().flatten().map(|(_, tau)| *tau).collect();
+    // Sorted and deduplicated by the same order the search below uses, so every τ is found.
+    taus.sort_by(f64::total_cmp);
+    taus.dedup_by(|a, b| a.total_cmp(b).is_eq());
+    let tau_of = tracks
+        .iter()
+        .map(|t| {
+            t.iter()
+                .map(|(_, tau)| {
+                    taus.binary_search_by(|x| x.total_cmp(tau))
+                        .unwrap_or_default()
+                })
+                .collect()
+        })
+        .collect();
     Some(Problem {
         offsets,
         tracks,
         jacs,
+        taus,
+        tau_of,
     })
 }
 
