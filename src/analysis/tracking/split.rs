@@ -257,7 +257,9 @@ impl Tracker {
 /// disc does not reach while they are at least 0.7 radii apart (`profile_fit_behind` needs
 /// three quarters). Each column's run is where it is brighter than halfway between
 /// the background and its own brightest pixel, so a lamp's shading or a highlight moves it
-/// little. None where a disc has fewer than two such columns whose run is at least a radius long.
+/// little. None where the discs are less than 0.7 radii apart across (their columns shared: on
+/// a hw-sim rig such starts gave crescents 2.5–8 px off), or a disc has fewer than two such
+/// columns whose run is at least a radius long.
 fn starts_from_x(
     img: &GreyImage,
     view: &View,
@@ -273,6 +275,10 @@ fn starts_from_x(
         view.project(&p)
     };
     let centres = [at_x(x_mm[0]), at_x(x_mm[1])];
+    // Discs less than 0.7 radii apart across share their columns: no far side to read.
+    if (centres[0][0] - centres[1][0]).abs() < 0.7 * radius_px[0].max(radius_px[1]) {
+        return None;
+    }
     let [_, v_top, _, v_bottom] = blob.extent_px;
     let rows = v_top.saturating_sub(2)..(v_bottom + 3).min(img.height);
     let v_of = |s: usize| -> Option<f64> {
