@@ -267,7 +267,7 @@ fn observations_once(
     }
     let hidden_notes = overlap::widen_hidden(&mut obs, &views);
     let g = cfg.analysis.gravity_mm_s2;
-    let contact_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
+    let contact_mm = cfg.spheres.contact_mm();
     let period = 1.0 / info.frame_rate_hz;
     let primary = 0; // views[0] is direct when present, else the mirror
 

@@ -145,6 +145,14 @@ mod tests {
     use super::*;
     use crate::analysis::geometry::views;
 
+    /// The default config's views, and where each images the world point (x, y, z) mm.
+    fn seen_at(x: f64, y: f64, z: f64) -> (Vec<View>, [f64; 2], [f64; 2]) {
+        let vs = views(&crate::config::Config::default_config());
+        let p = crate::analysis::geometry::V3::new(x, y, z);
+        let (pd, pm) = (vs[0].project(&p), vs[1].project(&p));
+        (vs, pd, pm)
+    }
+
     fn frame(k: u64, direct: [f64; 2], mirror: [f64; 2], kind: Option<HiddenInPart>) -> FrameObs {
         frame_hidden_in(k, direct, mirror, [None, kind])
     }
@@ -181,11 +189,7 @@ mod tests {
     /// others keep theirs; with fewer than three checks the hidden fits are dropped.
     #[test]
     fn hidden_fits_get_the_disagreement_on_x_as_their_sigma() {
-        let cfg = crate::config::Config::default_config();
-        let vs = views(&cfg);
-        let (d, m) = (&vs[0], &vs[1]);
-        let p = crate::analysis::geometry::V3::new(1.0, 2.0, 0.5);
-        let (pd, pm) = (d.project(&p), m.project(&p));
+        let (vs, pd, pm) = seen_at(1.0, 2.0, 0.5);
         let mut obs: Vec<FrameObs> = (0..6)
             .map(|k| {
                 let off = if k % 2 == 0 { 0.3 } else { -0.3 };
@@ -223,11 +227,7 @@ mod tests {
     /// neither view sees it whole nothing checks them.
     #[test]
     fn the_direct_views_hidden_fits_are_checked_against_the_mirror() {
-        let cfg = crate::config::Config::default_config();
-        let vs = views(&cfg);
-        let (d, m) = (&vs[0], &vs[1]);
-        let p = crate::analysis::geometry::V3::new(-1.0, 0.5, 2.0);
-        let (pd, pm) = (d.project(&p), m.project(&p));
+        let (vs, pd, pm) = seen_at(-1.0, 0.5, 2.0);
         let mut obs: Vec<FrameObs> = (0..6)
             .map(|k| {
                 let off = if k % 2 == 0 { 0.4 } else { -0.4 };
@@ -264,11 +264,7 @@ mod tests {
     /// four times.
     #[test]
     fn the_widening_counts_the_share_of_the_error_x_can_see() {
-        let cfg = crate::config::Config::default_config();
-        let vs = views(&cfg);
-        let (d, m) = (&vs[0], &vs[1]);
-        let p = crate::analysis::geometry::V3::new(0.5, 1.0, -1.0);
-        let (pd, pm) = (d.project(&p), m.project(&p));
+        let (vs, pd, pm) = seen_at(0.5, 1.0, -1.0);
         for (angle_deg, factor) in [(0.0, 1.0), (45.0, 2.0), (75.0, 4.0)] {
             let a = f64::to_radians(angle_deg);
             let mut obs: Vec<FrameObs> = (0..4)

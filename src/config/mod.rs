@@ -423,6 +423,11 @@ impl SpheresConfig {
         let m = o.as_ref().and_then(|o| o.mass_g).unwrap_or(self.mass_g);
         (d, m)
     }
+
+    /// Distance between the spheres' centres when they touch, mm: the mean of the diameters.
+    pub fn contact_mm(&self) -> f64 {
+        0.5 * (self.sphere(0).0 + self.sphere(1).0)
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

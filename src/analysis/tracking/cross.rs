@@ -34,7 +34,7 @@ impl Tracker {
         // One circle in the primary view where the secondary sees both closer in x than they
         // are wide: the primary's silhouette may hold both, one partly hiding the other, and a
         // circle fitted to it sits between them. It is not a measurement of either.
-        let contact_mm = 0.5 * (cx.cfg.spheres.sphere(0).0 + cx.cfg.spheres.sphere(1).0);
+        let contact_mm = cx.cfg.spheres.contact_mm();
         if x(0, 0).is_some() != x(0, 1).is_some() {
             // Unless the other sphere's own track in the primary view has taken it wholly
             // beyond the view's border: then the circle holds one sphere. Why: spheres one above
@@ -116,7 +116,7 @@ impl Tracker {
         let view = &cx.views[0];
         let dots0 = cx.dots.get(&(cx.i, 0)).map(Vec::as_slice).unwrap_or(&[]);
         let radius = [0, 1].map(|s| cx.cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
-        let contact_mm = 0.5 * (cx.cfg.spheres.sphere(0).0 + cx.cfg.spheres.sphere(1).0);
+        let contact_mm = cx.cfg.spheres.contact_mm();
         // x of a and b as the secondary view measured them in this frame; a sphere it
         // did not measure matches nothing.
         let x = [0, 1].map(|s| {

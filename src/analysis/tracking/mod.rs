@@ -265,7 +265,7 @@ impl Tracker {
         } else {
             [None, None]
         };
-        let contact_mm = 0.5 * (cx.cfg.spheres.sphere(0).0 + cx.cfg.spheres.sphere(1).0);
+        let contact_mm = cx.cfg.spheres.contact_mm();
         // One silhouette holding both spheres in a secondary view (after a collision they
         // can stay one behind the other in the mirror to the end of the recording): each
         // sphere's visible arc is fitted on its own, and labelled by the x the primary view
@@ -277,9 +277,7 @@ impl Tracker {
             }
         }
         if vi > 0
-            && self.measure_split_silhouette(
-                cx, vi, view, &lv, dots, &blobs, primary_x, contact_mm, r_mean, spheres,
-            )
+            && self.measure_split_silhouette(cx, vi, view, &lv, dots, &blobs, primary_x, spheres)
         {
             return;
         }

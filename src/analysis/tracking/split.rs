@@ -43,14 +43,13 @@ impl Tracker {
         dots: &[DotMask],
         blobs: &[Blob],
         primary_x: [Option<f64>; 2],
-        contact_mm: f64,
-        r_mean: f64,
         spheres: &mut Spheres,
     ) -> bool {
         let [blob] = blobs else { return false };
         if vi == 0 || blob.clipped {
             return false;
         }
+        let contact_mm = cx.cfg.spheres.contact_mm();
         let close = matches!(primary_x, [Some(xa), Some(xb)] if (xa - xb).abs() < contact_mm);
         if !(blob.merged || close) {
             return false;
@@ -64,7 +63,7 @@ impl Tracker {
             }),
             depth_mm: depths(cx, spheres, 0, view),
         };
-        self.split_silhouette(cx, vi, view, lv, dots, blob, &other, r_mean, spheres)
+        self.split_silhouette(cx, vi, view, lv, dots, blob, &other, spheres)
     }
 
     /// The primary view's one silhouette, after the secondary views were measured, where the
@@ -93,7 +92,7 @@ impl Tracker {
                 .as_ref()
                 .map(|m| world_x(&cx.views[oi], m.centre_px))
         });
-        let contact_mm = 0.5 * (cx.cfg.spheres.sphere(0).0 + cx.cfg.spheres.sphere(1).0);
+        let contact_mm = cx.cfg.spheres.contact_mm();
         let close = matches!(x_mm, [Some(xa), Some(xb)] if (xa - xb).abs() < contact_mm);
         if !(blob.merged || close) {
             return;
@@ -102,11 +101,9 @@ impl Tracker {
             x_mm,
             depth_mm: depths(cx, spheres, oi, view),
         };
-        let radius = [0, 1].map(|s| cx.cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
-        let r_mean = 0.5 * (radius[0] + radius[1]);
         let dots = cx.dots.get(&(cx.i, 0)).map(Vec::as_slice).unwrap_or(&[]);
         let before = self.unmeasured.len();
-        if self.split_silhouette(cx, 0, view, lv, dots, blob, &other, r_mean, spheres) {
+        if self.split_silhouette(cx, 0, view, lv, dots, blob, &other, spheres) {
             let own = self.unmeasured.split_off(before);
             let (frame, name) = (cx.i as u64, view.kind.name());
             self.unmeasured
@@ -128,11 +125,12 @@ impl Tracker {
         dots: &[DotMask],
         blob: &Blob,
         other: &FromOtherView,
-        r_mean: f64,
         spheres: &mut Spheres,
     ) -> bool {
         let t = cx.t;
-        let contact_mm = 0.5 * (cx.cfg.spheres.sphere(0).0 + cx.cfg.spheres.sphere(1).0);
+        let contact_mm = cx.cfg.spheres.contact_mm();
+        let radius = [0, 1].map(|s| cx.cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
+        let r_mean = 0.5 * (radius[0] + radius[1]);
         let r_seen: Vec<f64> = self.memory[vi].radius.iter().flatten().copied().collect();
         let r_fit = if r_seen.is_empty() {
             r_mean
