@@ -392,12 +392,9 @@ fn calibrate_finds_the_mirrors_edge_where_the_configs_regions_cut_through_a_view
     );
     // The maps are those found with the right regions, within their σ.
     let scale = |text: &str| -> (f64, f64) {
-        // "# direct: scale a ± s px/mm from free fall, b ± s px/mm from the diameter, c ± s px/mm used;"
-        let line = text
-            .lines()
-            .find(|l| l.starts_with("# direct: scale"))
-            .unwrap();
-        let used: Vec<&str> = line.split(',').nth(2).unwrap().split_whitespace().collect();
+        // "#   c ± s px/mm used (…);", below "# direct: scale …"
+        let line = text.lines().find(|l| l.contains("px/mm used")).unwrap();
+        let used: Vec<&str> = line.trim_start_matches('#').split_whitespace().collect();
         (used[0].parse().unwrap(), used[2].parse().unwrap())
     };
     let right = calibrate(

@@ -752,6 +752,7 @@ mod tests {
                 blob_centroid_px: px,
                 sigma_px: [0.02, 0.02],
                 diameter_px: 13.7,
+                edge_width_px: f64::NAN,
                 markers: Vec::new(),
                 hidden_in_part: None,
                 radius_stray_px,

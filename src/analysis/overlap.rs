@@ -169,6 +169,7 @@ mod tests {
             blob_centroid_px: c,
             sigma_px: [0.02, 0.02],
             diameter_px: 13.7,
+            edge_width_px: f64::NAN,
             markers: Vec::new(),
             hidden_in_part: h,
             radius_stray_px: 0.0,

@@ -92,6 +92,7 @@ mod tests {
             blob_centroid_px: [10.0, 10.0],
             sigma_px: [0.03, 0.04],
             diameter_px,
+            edge_width_px: f64::NAN,
             markers: Vec::new(),
             hidden_in_part: None,
             radius_stray_px: 0.0,

@@ -117,6 +117,7 @@ pub fn read(
             blob_centroid_px: [u, v],
             sigma_px: [f64::NAN, f64::NAN],
             diameter_px: f64::NAN,
+            edge_width_px: f64::NAN,
             markers: Vec::new(),
             hidden_in_part: None,
             radius_stray_px: 0.0,

@@ -31,6 +31,9 @@ pub(super) struct Bundle {
     pub(super) lens_k1: Fitted,
     pub(super) mirror: Option<MirrorFit>,
     pub(super) residual_rms_px: [f64; 2],
+    /// The mean depth of the spheres' centres towards each view's camera, mm, over the points
+    /// fitted (facing·w): where perspective was found, the imaged diameter is the scale there.
+    pub(super) mean_depth_mm: [f64; 2],
 }
 
 /// (parameter, σ) of the bundle's priors: the mirror's turns about x, y, z (rad), the two
@@ -359,8 +362,36 @@ pub(super) fn fit_bundle(
             (ss / n as f64).sqrt()
         }
     };
+    let mean_depth = |view: usize| {
+        let md = direct_matrix(th[0], th[1]);
+        let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], sx, f);
+        let facing = if view == 0 {
+            facing_of(&md, ViewKind::Direct)
+        } else {
+            facing_of(&mm, ViewKind::Mirror)
+        };
+        let (sum, n) = pts
+            .iter()
+            .enumerate()
+            .filter(|(i, p)| p.view == view && weights.borrow()[*i] > 0.0)
+            .fold((0.0, 0usize), |(sum, n), (_, p)| {
+                let (b, t) = (nv + 6 * slot(p.flight), p.dt);
+                let w = V3::new(
+                    th[b] + th[b + 1] * t,
+                    th[b + 2] + th[b + 3] * t - 0.5 * g * t * t,
+                    th[b + 4] + th[b + 5] * t,
+                );
+                (sum + facing.dot(&w), n + 1)
+            });
+        if n == 0 {
+            0.0
+        } else {
+            sum / n as f64
+        }
+    };
     let deg = 180.0 / std::f64::consts::PI;
     Ok(Bundle {
+        mean_depth_mm: [mean_depth(0), mean_depth(1)],
         direct_scale: fitted(0, 1.0),
         direct_roll: fitted(1, deg),
         kappa: [fitted(7, 1.0), fitted(8, 1.0)],
@@ -401,6 +432,16 @@ mod tests {
         noise_px: f64,
         seed: u64,
     ) -> (Vec<FrameObs>, Vec<Vec<usize>>) {
+        flights_through_at(views, noise_px, seed, V3::zeros())
+    }
+
+    /// `flights_through`, every flight moved by `offset_mm`.
+    fn flights_through_at(
+        views: [&View; 2],
+        noise_px: f64,
+        seed: u64,
+        offset_mm: V3,
+    ) -> (Vec<FrameObs>, Vec<Vec<usize>>) {
         let mut rng = hw_sim::Rng::new(seed);
         let flights = [
             (V3::new(-15.0, 5.0, 1.0), V3::new(800.0, -300.0, 20.0)),
@@ -412,7 +453,7 @@ mod tests {
         for (k, (p0, v)) in flights.iter().enumerate() {
             for j in 0..25 {
                 let t = (j as f64 - 12.0) / 1000.0;
-                let p = p0 + v * t + V3::new(0.0, -0.5 * G * t * t, 0.0);
+                let p = p0 + offset_mm + v * t + V3::new(0.0, -0.5 * G * t * t, 0.0);
                 let mut spheres = [vec![None, None], vec![None, None]];
                 for (vi, view) in views.iter().enumerate() {
                     let q = view.project(&p);
@@ -425,6 +466,7 @@ mod tests {
                         blob_centroid_px: c,
                         sigma_px: [noise_px; 2],
                         diameter_px: 13.7,
+                        edge_width_px: f64::NAN,
                         markers: Vec::new(),
                         hidden_in_part: None,
                         radius_stray_px: 0.0,
@@ -518,6 +560,70 @@ mod tests {
                 "perspective found"
             );
             assert!(m.residual_rms_px < 0.03, "{}", m.residual_rms_px);
+        }
+    }
+
+    /// Where the spheres flew in depth, as the fit says: the mean of the fitted centres'
+    /// distance towards each camera, which is where the imaged diameter measures the scale
+    /// under perspective (calibrate corrects the diameter's scale to the world origin by it).
+    #[test]
+    fn the_bundle_says_how_deep_the_flights_were() {
+        let kappa = Fitted {
+            value: 1.0 / 300.0,
+            sigma: 0.0,
+        };
+        let (od, om) = ([119.5, 44.0], [121.0, 144.0]);
+        let direct = View::from_config(
+            ViewKind::Direct,
+            &view_geometry(
+                [0, 0, 240, 96],
+                direct_matrix(2.1576, 0.0),
+                od,
+                ViewKind::Direct,
+                kappa,
+            ),
+        );
+        let mm = mirror_matrix(2.1175, [0.0; 3], 1.0, 1.0);
+        let mirror = View::from_config(
+            ViewKind::Mirror,
+            &view_geometry([0, 96, 240, 96], mm, om, ViewKind::Mirror, kappa),
+        );
+        let facing_mirror = facing_of(&mm, ViewKind::Mirror);
+        for (offset, seed) in [(V3::new(0.0, 3.0, 12.0), 7), (V3::new(2.0, -4.0, -9.0), 8)] {
+            let (obs, phases) = flights_through_at([&direct, &mirror], 0.02, seed, offset);
+            let b = fit_bundle(
+                &obs,
+                &phases,
+                G,
+                0,
+                Some(1),
+                od,
+                (2.1576, 0.0),
+                Some(&mirror),
+                None,
+                None,
+            )
+            .unwrap();
+            // The four flights' centres average to (0, −0.5, 0) mm over their frames (their
+            // starts; symmetric in time about their mean), less gravity's mean drop in y.
+            let drop = -0.5
+                * G
+                * (0..25)
+                    .map(|j| ((j as f64 - 12.0) / 1000.0).powi(2))
+                    .sum::<f64>()
+                / 25.0;
+            let mean_mirror = facing_mirror.dot(&(offset + V3::new(0.0, -0.5 + drop, 0.0)));
+            assert!(
+                (b.mean_depth_mm[0] - offset.z).abs() < 0.5,
+                "direct: {} mm, the flights at z {} mm",
+                b.mean_depth_mm[0],
+                offset.z
+            );
+            assert!(
+                (b.mean_depth_mm[1] - mean_mirror).abs() < 0.5,
+                "mirror: {} mm, the flights at {mean_mirror} mm towards it",
+                b.mean_depth_mm[1]
+            );
         }
     }
 

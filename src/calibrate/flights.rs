@@ -119,24 +119,105 @@ pub(super) fn parabola_acceleration(pts: &[(f64, [f64; 2])]) -> Option<([f64; 2]
     ))
 }
 
-/// Median imaged diameter over the true one, px/mm, with σ from the spread.
+/// How far the disc's model can put a sharp edge from where it is, px on the radius, whatever
+/// the look: a lamp off the camera's axis, a shiny surface, dots at the limb. The largest mean
+/// radius error measured (docs/accuracy.md, session 32): 0.027 px on hw-sim's varied looks
+/// (a specular family's rig), 0.016 px on the independent renders with sharp edges.
+pub(super) const EDGE_SYSTEMATIC_PX: f64 = 0.03;
+
+/// Median imaged diameter over the true one, px/mm. Its σ is the median's own (from the
+/// spread) and what the look can do to every disc alike, which no number of frames averages
+/// away: `EDGE_SYSTEMATIC_PX`, and defocus's σ_b²/R, where σ_b = π·s/√3 is the fitted edge's
+/// blur (`Measurement::edge_width_px`, the median over the view). Why σ_b²/R: blurring a disc
+/// moves its half-level contour in by σ_b²/2R, and the disc's model follows that only in
+/// part; on hw-sim's defocused looks the diameter came out 0.5–2.6 % small at σ_b 1–1.5 px
+/// (R ≈ 7 px: σ_b²/R is 2–5 %), on a render blurred by 0.5 px 0.6 % large.
 pub(super) fn diameter_scale(obs: &[FrameObs], vi: usize, diam_mm: [f64; 2]) -> Option<Fitted> {
-    let mut r: Vec<f64> = obs
-        .iter()
-        .flat_map(|f| {
-            (0..2).filter_map(move |s| Some(f.spheres[s][vi].as_ref()?.diameter_px / diam_mm[s]))
+    let discs = || {
+        obs.iter().flat_map(move |f| {
+            (0..2).filter_map(move |s| {
+                let m = f.spheres[s][vi].as_ref()?;
+                (m.diameter_px.is_finite() && m.diameter_px > 0.0).then_some((s, m))
+            })
         })
-        .filter(|x| x.is_finite() && *x > 0.0)
-        .collect();
+    };
+    let mut r: Vec<f64> = discs().map(|(s, m)| m.diameter_px / diam_mm[s]).collect();
     if r.len() < 3 {
         return None;
     }
-    r.sort_by(f64::total_cmp);
-    let med = r[r.len() / 2];
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let med = median(&mut r);
     let mut dev: Vec<f64> = r.iter().map(|x| (x - med).abs()).collect();
-    dev.sort_by(f64::total_cmp);
+    let spread = 1.4826 * median(&mut dev) * (std::f64::consts::PI / 2.0 / r.len() as f64).sqrt();
+    let radius_px = median(&mut discs().map(|(_, m)| m.diameter_px / 2.0).collect());
+    let mut widths: Vec<f64> = discs()
+        .map(|(_, m)| m.edge_width_px)
+        .filter(|w| w.is_finite())
+        .collect();
+    let blur_px = if widths.is_empty() {
+        0.0
+    } else {
+        std::f64::consts::PI / 3f64.sqrt() * median(&mut widths)
+    };
+    let systematic_px = EDGE_SYSTEMATIC_PX.hypot(blur_px * blur_px / radius_px);
     Some(Fitted {
         value: med,
-        sigma: 1.4826 * dev[dev.len() / 2] * (std::f64::consts::PI / 2.0 / r.len() as f64).sqrt(),
+        sigma: spread.hypot(med * systematic_px / radius_px),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::tracking::Measurement;
+
+    /// 30 frames of both spheres seen whole in one view, diameters 13.7 px ± 0.02 px.
+    fn discs(edge_width_px: f64) -> Vec<FrameObs> {
+        (0..30)
+            .map(|k| {
+                let m = |d: f64| {
+                    Some(Measurement {
+                        centre_px: [50.0, 40.0],
+                        blob_centroid_px: [50.0, 40.0],
+                        sigma_px: [0.02; 2],
+                        diameter_px: d,
+                        edge_width_px,
+                        markers: Vec::new(),
+                        hidden_in_part: None,
+                        radius_stray_px: 0.0,
+                    })
+                };
+                let d = 13.7 + 0.02 * ((k % 5) as f64 - 2.0);
+                FrameObs {
+                    index: k,
+                    frame_id: k,
+                    time_s: k as f64 / 1000.0,
+                    spheres: [vec![m(d)], vec![m(d + 0.01)]],
+                    position_mm: [None, None],
+                }
+            })
+            .collect()
+    }
+
+    /// The diameter's scale is known no better than the disc's model places an edge, however
+    /// many frames agree, and worse where the edge is blurred.
+    #[test]
+    fn the_diameters_scale_carries_what_the_look_can_do_to_every_disc() {
+        let diam = [6.35, 6.35];
+        let sharp = diameter_scale(&discs(0.05), 0, diam).unwrap();
+        let blurred = diameter_scale(&discs(0.6), 0, diam).unwrap();
+        let typed_in = diameter_scale(&discs(f64::NAN), 0, diam).unwrap();
+        assert!((sharp.value - 13.7 / 6.35).abs() < 0.01, "{}", sharp.value);
+        // The median of 60 discs scattered by 0.02 px alone would claim 0.02 %.
+        let floor = EDGE_SYSTEMATIC_PX / 6.85;
+        let rel = |f: Fitted| f.sigma / f.value;
+        assert!(rel(sharp) >= floor, "sharp: {} against {floor}", rel(sharp));
+        assert!(rel(sharp) < 1.1 * floor, "sharp: {}", rel(sharp));
+        assert!(rel(typed_in) >= floor, "{}", rel(typed_in));
+        // s = 0.6: σ_b = 1.09 px, σ_b²/R = 0.17 px, 2.5 % of R.
+        assert!(rel(blurred) > 0.02, "blurred: {}", rel(blurred));
+    }
 }

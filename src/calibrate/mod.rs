@@ -49,9 +49,14 @@ pub struct Fitted {
 pub struct DirectFit {
     pub scale_from_free_fall: Fitted,
     pub scale_from_diameter: Fitted,
-    /// From both views' flights fitted together, g known (the one used: the imaged edge's
-    /// position depends on the light, free fall does not; the diameter's is the check).
+    /// From both views' flights fitted together, g known.
+    pub scale_from_flights: Fitted,
+    /// The one used: the flights' and the diameter's weighed by their σ (`combine_scales`), or
+    /// the flights' alone where the two disagree.
     pub scale: Fitted,
+    /// How far the diameter's scale lay from the flights', in σ of their difference, where
+    /// that was beyond `SCALES_AGREE_SIGMA` and the diameter's was left out.
+    pub diameter_disagrees_sigma: Option<f64>,
     /// Image direction of gravity away from straight down, deg (positive: towards +u).
     pub roll_deg: Fitted,
     pub residual_rms_px: f64,
@@ -199,8 +204,6 @@ pub fn calibrate_paths(
 /// analysis carries it into every estimate. A user who knows better edits the two numbers.
 pub const DIRECT_SQUARE_DEG: f64 = 1.0;
 
-/// A scale's σ, %, as the config accepts it: at most 20 (a fit that knows the scale worse, or
-/// not at all, says 20 rather than writing a config the analysis would refuse).
 /// The measurements of discs seen whole: a disc the other sphere partly hides was fitted on
 /// part of its edge, and is off along the line between them by more than its σ says (the
 /// analysis widens it by how far such centres' x disagree with the other view's, which needs
@@ -220,6 +223,8 @@ fn whole_discs_only(mut obs: Vec<FrameObs>) -> Vec<FrameObs> {
     obs
 }
 
+/// A scale's σ, %, as the config accepts it: at most 20 (a fit that knows the scale worse, or
+/// not at all, says 20 rather than writing a config the analysis would refuse).
 fn percent_known(p: f64) -> f64 {
     if p.is_finite() {
         p.abs().min(20.0)
@@ -505,10 +510,37 @@ pub fn calibrate(
             (bundle, k1, found)
         }
     };
-    let m_direct = direct_matrix(
-        bundle.direct_scale.value,
-        bundle.direct_roll.value.to_radians(),
-    );
+    // The whole world scaled by 1/k and every map by k images the same flights (each camera's
+    // 1/distance scales with the maps): so the flights fix the mirror's scale against the
+    // direct view's far better than either alone, and a better direct scale moves both.
+    // Under perspective the imaged diameter is the scale where the spheres flew, 1/(1 − κ·depth)
+    // times the map's at the world origin.
+    let at_origin = if distance(bundle.kappa[0]).is_some() {
+        1.0 - bundle.kappa[0].value * bundle.mean_depth_mm[0]
+    } else {
+        1.0
+    };
+    let scale_from_diameter = Fitted {
+        value: scale_from_diameter.value * at_origin,
+        sigma: scale_from_diameter.sigma * at_origin,
+    };
+    let (scale, diameter_disagrees_sigma) =
+        combine_scales(bundle.direct_scale, scale_from_diameter);
+    let k = scale.value / bundle.direct_scale.value;
+    let mut bundle = bundle;
+    for kappa in &mut bundle.kappa {
+        kappa.value *= k;
+        kappa.sigma *= k;
+    }
+    if let Some(m) = bundle.mirror.as_mut() {
+        // Its σ: the ratio's (the part of its own the direct view's does not share) and the
+        // direct scale's as used.
+        let rel = |f: Fitted| f.sigma / f.value;
+        let ratio = (rel(m.scale).powi(2) - rel(bundle.direct_scale).powi(2)).max(0.0);
+        m.scale.value *= k;
+        m.scale.sigma = m.scale.value * (ratio + rel(scale).powi(2)).sqrt();
+    }
+    let m_direct = direct_matrix(scale.value, bundle.direct_roll.value.to_radians());
     let mut geometry = crate::config::Geometry {
         direct: Some(view_geometry(
             direct_cfg.region,
@@ -522,9 +554,7 @@ pub fn calibrate(
     // How well each map is known, for the analysis to carry into its estimates' σ. The direct
     // camera's pitch and yaw are not determined (see the docs): taken as 0 ± DIRECT_SQUARE_DEG.
     if let Some(v) = geometry.direct.as_mut() {
-        v.px_per_mm_uncertainty_percent = Some(percent_known(
-            100.0 * bundle.direct_scale.sigma / bundle.direct_scale.value,
-        ));
+        v.px_per_mm_uncertainty_percent = Some(percent_known(100.0 * scale.sigma / scale.value));
         v.turn_uncertainty_deg = Some([
             DIRECT_SQUARE_DEG,
             DIRECT_SQUARE_DEG,
@@ -582,7 +612,9 @@ pub fn calibrate(
         direct: DirectFit {
             scale_from_free_fall,
             scale_from_diameter,
-            scale: bundle.direct_scale,
+            scale_from_flights: bundle.direct_scale,
+            scale,
+            diameter_disagrees_sigma,
             roll_deg: bundle.direct_roll,
             residual_rms_px: bundle.residual_rms_px[0],
             camera_distance_mm: distance(bundle.kappa[0]),
@@ -595,9 +627,66 @@ pub fn calibrate(
     })
 }
 
+/// How far apart, in σ of their difference, the flights' and the diameter's scales may lie and
+/// still be weighed together.
+pub const SCALES_AGREE_SIGMA: f64 = 3.0;
+
+/// The direct view's scale from the flights (free fall, g known) and from the imaged diameter,
+/// weighed by their σ; where they disagree beyond `SCALES_AGREE_SIGMA`, the flights' alone
+/// (the diameter's rests on where the disc's model puts its edge, the flights' on g and the
+/// frame rate) and how far apart they were. Why both: free fall over the 20–40 frames of a
+/// short recording knows the scale to 0.4–2 %, the imaged diameter to 0.3–0.5 % (its σ,
+/// `flights::diameter_scale`), and a grazing impact's e moves by about ψ1·0.8 times a scale's
+/// error (the contact distance is a diameter in mm): on an independent render at ψ1 = 2.5 the
+/// flights' scale alone, 0.8 % off (1.1σ), put e 0.049 off.
+fn combine_scales(flights: Fitted, diameter: Fitted) -> (Fitted, Option<f64>) {
+    let z = (diameter.value - flights.value) / flights.sigma.hypot(diameter.sigma);
+    let usable = |f: Fitted| f.value.is_finite() && f.sigma.is_finite() && f.sigma > 0.0;
+    if !(usable(flights) && usable(diameter)) || z.is_nan() {
+        return (flights, None);
+    }
+    if z.abs() > SCALES_AGREE_SIGMA {
+        return (flights, Some(z));
+    }
+    let (wf, wd) = (flights.sigma.powi(-2), diameter.sigma.powi(-2));
+    (
+        Fitted {
+            value: (wf * flights.value + wd * diameter.value) / (wf + wd),
+            sigma: (wf + wd).recip().sqrt(),
+        },
+        None,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn fitted(value: f64, sigma: f64) -> Fitted {
+        Fitted { value, sigma }
+    }
+
+    /// Scales that agree are weighed by their σ, the result knowing more than either; a
+    /// diameter's scale beyond 3σ of the flights' is left out and the distance said.
+    #[test]
+    fn the_flights_and_the_diameters_scales_are_weighed_where_they_agree() {
+        let (both, note) = combine_scales(fitted(2.3375, 0.0178), fitted(2.3146, 0.0095));
+        assert_eq!(note, None);
+        let (wf, wd) = (0.0178f64.powi(-2), 0.0095f64.powi(-2));
+        assert!((both.value - (wf * 2.3375 + wd * 2.3146) / (wf + wd)).abs() < 1e-12);
+        assert!(both.value > 2.3146 && both.value < 2.3375);
+        assert!(both.sigma < 0.0095, "{}", both.sigma);
+        let (alone, note) = combine_scales(fitted(2.1576, 0.002), fitted(2.10, 0.005));
+        assert_eq!((alone.value, alone.sigma), (2.1576, 0.002));
+        let z = note.unwrap();
+        assert!(
+            (z - (2.10 - 2.1576) / 0.002f64.hypot(0.005)).abs() < 1e-9,
+            "{z}"
+        );
+        // Nothing to weigh: the flights' as they are.
+        let (kept, note) = combine_scales(fitted(2.0, 0.01), fitted(f64::NAN, f64::NAN));
+        assert_eq!((kept.value, note), (2.0, None));
+    }
 
     /// What calibrate writes for how well it knows a map is always a value the config accepts:
     /// the analysis must not refuse the config calibrate printed.

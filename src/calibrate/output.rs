@@ -16,7 +16,8 @@ impl Calibrated {
         let d = &self.direct;
         let mut out = format!(
             "# impactcam calibrate: {}{}, {} frames. The world origin is the config's (a choice).\n\
-             # direct: scale {} from free fall, {} from the diameter, {} used;\n\
+             # direct: scale {} from free fall, {} from the diameter, {} from both views' flights,\n\
+             #   {} used ({});\n\
              #   roll {} (image direction of gravity); parabola residuals {:.3} px RMS\n",
             self.source,
             if self.recordings > 1 {
@@ -27,7 +28,14 @@ impl Calibrated {
             self.frames,
             p(&d.scale_from_free_fall, "px/mm", 4),
             p(&d.scale_from_diameter, "px/mm", 4),
+            p(&d.scale_from_flights, "px/mm", 4),
             p(&d.scale, "px/mm", 4),
+            match d.diameter_disagrees_sigma {
+                None => "the flights' and the diameter's, weighed by their σ".to_string(),
+                Some(z) => format!(
+                    "WARNING: the flights' alone, the diameter's lies {z:+.1}σ from it — defocus, or a lamp the disc's model does not follow"
+                ),
+            },
             p(&d.roll_deg, "deg", 3),
             d.residual_rms_px
         );

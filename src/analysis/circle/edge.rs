@@ -139,6 +139,7 @@ pub fn robust_fit(points: &[[f64; 2]], oversampling: f64) -> Option<CircleFit> {
         points_total: points.len(),
         arc_sectors: sectors_covered(&keep, c),
         grey_levels: false,
+        edge_width_px: f64::NAN,
     })
 }
 
@@ -388,6 +389,7 @@ pub fn fit_fixed_radius(
             points_total: points.len(),
             arc_sectors: sectors_covered(&keep, c),
             grey_levels: false,
+            edge_width_px: f64::NAN,
         });
         let limit = (3.0 * s2.sqrt()).max(0.1);
         let before = keep.len();

@@ -40,6 +40,10 @@ pub struct CircleFit {
     /// whole model, whose own residuals say whether it is one circle (a shiny or side-lit
     /// sphere's edge points agree less, because one level does not suit its whole rim).
     pub grey_levels: bool,
+    /// The grey-level fit's edge width s, px (the logistic step L((R − d)/s) of `profile`: a
+    /// standard deviation of π·s/√3 across the edge, the pixel's own size included); NaN for
+    /// a fit on edge points. Calibrate reads from it how far defocus can move the edge.
+    pub edge_width_px: f64,
 }
 
 impl CircleFit {
@@ -56,6 +60,7 @@ impl CircleFit {
             points_total: 0,
             arc_sectors: 0,
             grey_levels: false,
+            edge_width_px: f64::NAN,
         }
     }
 }

@@ -61,6 +61,7 @@ fn fit_pair_shared_radius(
         points_total: total,
         arc_sectors: sectors_covered(pts, [p[2 * k], p[2 * k + 1]]),
         grey_levels: false,
+        edge_width_px: f64::NAN,
     };
     Some([
         circle(0, a, start[0].points_total),

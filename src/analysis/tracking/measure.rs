@@ -163,6 +163,7 @@ pub(super) fn measure_blob(
         blob_centroid_px: b.centroid,
         sigma_px: f.centre_sigma,
         diameter_px: 2.0 * f.radius,
+        edge_width_px: f.edge_width_px,
         // Beyond the border the frame shows another view: no dots from a clipped disc.
         markers: if b.clipped {
             Vec::new()

@@ -34,6 +34,9 @@ pub struct Measurement {
     pub blob_centroid_px: [f64; 2],
     pub sigma_px: [f64; 2],
     pub diameter_px: f64,
+    /// The grey-level fit's edge width s, px (`CircleFit::edge_width_px`); NaN where the disc
+    /// was fitted on edge points or typed in.
+    pub edge_width_px: f64,
     pub markers: Vec<MarkerObs>,
     /// Fitted where the other sphere hides part of this disc in this view, and how; None for a
     /// disc seen whole. Such a centre's error is more than its fit's σ says (`overlap`).

@@ -227,6 +227,7 @@ impl Tracker {
                         blob_centroid_px: f.centre,
                         sigma_px: f.centre_sigma,
                         diameter_px: 2.0 * f.radius,
+                        edge_width_px: f.edge_width_px,
                         markers: dots,
                         hidden_in_part: Some(if behind.is_some() {
                             HiddenInPart::Crescent

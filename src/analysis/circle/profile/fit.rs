@@ -626,6 +626,7 @@ where
             ],
             radius_sigma: cov[(o + 2, o + 2)].max(0.0).sqrt(),
             grey_levels: true,
+            edge_width_px: p[o + 3],
             ..**st
         };
     }
