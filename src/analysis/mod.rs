@@ -69,6 +69,56 @@ pub enum AnalysisError {
     },
 }
 
+/// How far beyond [0, 1] a measured e may lie, in its own σ, before the contact it was
+/// measured at is taken as not the impact.
+const RESTITUTION_BOUND_SIGMA: f64 = 3.0;
+
+/// Why a coefficient of restitution `e` ± `sigma` cannot come from a collision, if it cannot:
+/// below 0 the spheres would still approach along the normal after the contact (they would
+/// pass through each other), above 1 they would leave with more energy than they met with;
+/// beyond `RESTITUTION_BOUND_SIGMA` either way, the impact time and normal it was measured at
+/// are wrong, and so is every velocity taken there. Why: on a defocused grazing impact
+/// (offset 0.97), a build whose disc fits differed only in where their edge width started
+/// put the joint contact 4.4 ms early (σ 0.3 ms) and reported e −0.31 ± 0.03 against 0.90,
+/// every y velocity 11–14σ off, without a warning (docs/accuracy.md, session 32). No result,
+/// with the reason, is better than that.
+fn unphysical_restitution(e: f64, sigma: f64) -> Option<String> {
+    if !(e.is_finite() && sigma.is_finite()) {
+        return None;
+    }
+    let beyond = if e < 0.0 { -e } else { e - 1.0 };
+    (beyond > RESTITUTION_BOUND_SIGMA * sigma).then(|| {
+        format!(
+            "the contact found gives e = {e:.3} ± {sigma:.3}, beyond [0, 1] by more than {RESTITUTION_BOUND_SIGMA}σ: {} — that contact is not the impact (a grazing impact whose trajectories barely turn can put it milliseconds off)",
+            if e < 0.0 {
+                "the spheres would still approach after it"
+            } else {
+                "they would leave with more energy than they met with"
+            }
+        )
+    })
+}
+
+/// The final report, or why its e is no collision's (`unphysical_restitution`). Only the final
+/// one: the first pass's report serves for its spins (the dots it carries), and a re-run with a
+/// map stepped by its σ (`geometry_sigma`) only widens.
+fn physical(
+    analysed: Result<(Report, Details), AnalysisError>,
+) -> Result<(Report, Details), AnalysisError> {
+    let (report, details) = analysed?;
+    if let Some(message) = report
+        .e
+        .as_ref()
+        .and_then(|e| unphysical_restitution(e.value, e.uncertainty))
+    {
+        return Err(AnalysisError::NoImpact {
+            source_name: report.source.name.clone(),
+            message,
+        });
+    }
+    Ok((report, details))
+}
+
 /// Threads the analysis of one input may use (0: as many as the machine has).
 static THREADS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
@@ -168,7 +218,7 @@ pub fn analyze_detailed(
         stages::timed(stages::Stage::Fits, || {
             add_geometry_uncertainty(&mut report, &input(), &obs, &views, cfg)
         });
-        return Ok((report, details));
+        return physical(Ok((report, details)));
     }
     stages::set_pass(1);
     let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, &dots, &memo, &mut |i, n| {
@@ -206,12 +256,12 @@ pub fn analyze_observations(
 ) -> Result<(Report, Details), AnalysisError> {
     // A config that says nothing of its maps' uncertainty needs no copies for the re-runs.
     if geometry_sigma::terms(&cfg.geometry).is_empty() {
-        return observations_once(input, obs, unmeasured, views, cfg);
+        return physical(observations_once(input, obs, unmeasured, views, cfg));
     }
     let (mut report, details) =
         observations_once(input.clone(), obs.clone(), unmeasured, views.clone(), cfg)?;
     add_geometry_uncertainty(&mut report, &input, &obs, &views, cfg);
-    Ok((report, details))
+    physical(Ok((report, details)))
 }
 
 /// Re-runs the analysis of the observations with each geometry parameter whose uncertainty the
@@ -741,6 +791,26 @@ mod tests {
     use super::uncertainty::spin_variance;
     use super::*;
     use nalgebra::Rotation3;
+
+    /// A restitution outside [0, 1] beyond 3σ is no collision's; one within reach of the
+    /// bounds by its σ (a plastic impact measured a little below 0, a hard one a little
+    /// above 1) is.
+    #[test]
+    fn a_restitution_no_collision_can_give_is_not_reported() {
+        for (e, sigma) in [(-0.31, 0.029), (1.2, 0.05), (-0.05, 0.01)] {
+            let why = unphysical_restitution(e, sigma).expect("beyond 3σ");
+            assert!(why.contains(&format!("{e:.3}")), "{why}");
+        }
+        for (e, sigma) in [
+            (0.9, 0.01),
+            (-0.02, 0.01),
+            (1.02, 0.01),
+            (0.0, 0.0),
+            (1.0, 0.0),
+        ] {
+            assert_eq!(unphysical_restitution(e, sigma), None, "{e} ± {sigma}");
+        }
+    }
 
     /// Frame `k` of a synthetic recording at `dt` s a frame: sphere a measured at `centres_px`
     /// in the views (σ 0.02 px, the default look's diameter, no markers) with its radius
