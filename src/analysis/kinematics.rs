@@ -305,7 +305,7 @@ pub fn derive(
     let (pb2, vb2) = pos_vel(&fits[3], 0.0, g);
     let rel_post = vb2 - va2;
     let (mut tau_c, mut normal) = joint_contact(fits, g, contact_mm, tau_contact);
-    if rel_post.dot(&normal) < 0.0 {
+    if !turned_back(&normal, &rel_pre, &rel_post) {
         if let Some((tau, n)) =
             physical_contact(fits, g, contact_mm, tau_contact, (&rel_pre, &rel_post))
         {
@@ -448,8 +448,14 @@ const OTHER_CONTACT_WINDOW_S: f64 = 0.010;
 /// each seen.
 const OTHER_CONTACT_STEP_S: f64 = 0.000_25;
 
-/// Where `joint_contact`'s contact gives a normal along which the spheres still approach after
-/// it (e < 0: no collision's), the other minima of the same cost within
+/// Whether the spheres, with relative velocities `rel_pre` and `rel_post` (b − a), approached
+/// along the normal `n` (from a to b) before and did not after: what an impact's contact does.
+fn turned_back(n: &V3, rel_pre: &V3, rel_post: &V3) -> bool {
+    rel_pre.dot(n) < 0.0 && rel_post.dot(n) >= 0.0
+}
+
+/// Where `joint_contact`'s contact gives a normal along which the spheres were not approaching
+/// before it or still approach after it (no collision's), the other minima of the same cost within
 /// `OTHER_CONTACT_WINDOW_S` are tried, and the lowest-cost one along whose normal they
 /// approached before and separate after is taken; None if none is. Why: in a grazing impact
 /// both sides' lines run nearly parallel and the cost can have two minima of about the same
@@ -465,7 +471,6 @@ fn physical_contact(
     tau_start: f64,
     rel: (&V3, &V3),
 ) -> Option<(f64, V3)> {
-    let separates = |n: &V3| rel.0.dot(n) < 0.0 && rel.1.dot(n) >= 0.0;
     let steps = (OTHER_CONTACT_WINDOW_S / OTHER_CONTACT_STEP_S).round() as i64;
     let cost_at = |tau: f64| joint_contact_from(fits, g, contact_mm, tau_start, tau, 0).2;
     let grid: Vec<(f64, f64)> = (-steps..=steps)
@@ -477,7 +482,9 @@ fn physical_contact(
     grid.windows(3)
         .filter(|w| w[1].1 <= w[0].1 && w[1].1 <= w[2].1)
         .map(|w| joint_contact_from(fits, g, contact_mm, tau_start, w[1].0, 30))
-        .filter(|(tau, n, cost)| tau.is_finite() && cost.is_finite() && separates(n))
+        .filter(|(tau, n, cost)| {
+            tau.is_finite() && cost.is_finite() && turned_back(n, rel.0, rel.1)
+        })
         .min_by(|a, b| a.2.total_cmp(&b.2))
         .map(|(tau, n, _)| (tau, n))
 }

@@ -67,8 +67,8 @@ impl Calibrated {
                 // The grid's scale against the flights': a wrong g, frame rate or grid pitch, or
                 // flights that fitted badly, show here. (Under perspective the card's central
                 // dot is a little off the world origin's depth: 0.2 % for 0.7 mm at 300 mm.)
-                let z = (g.scale_px_per_mm.value - d.scale.value)
-                    / g.scale_px_per_mm.sigma.hypot(d.scale.sigma);
+                let z = (g.scale_px_per_mm.value - d.scale_from_flights.value)
+                    / g.scale_px_per_mm.sigma.hypot(d.scale_from_flights.sigma);
                 out += &format!(
                     "# lens: k1 {} (the fractional displacement at the frame's corners, about its centre)\n\
                      #   from the dot grid ({} dots, residuals {:.3} px RMS), written into both views and held\n\
@@ -79,7 +79,7 @@ impl Calibrated {
                     g.residual_rms_px,
                     p(&g.scale_px_per_mm, "px/mm", 4),
                     z,
-                    p(&d.scale, "px/mm", 4),
+                    p(&d.scale_from_flights, "px/mm", 4),
                     if z.abs() > 3.0 {
                         ": they DISAGREE (g, the frame rate or the grid's pitch?)"
                     } else {

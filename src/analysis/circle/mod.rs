@@ -41,8 +41,9 @@ pub struct CircleFit {
     /// sphere's edge points agree less, because one level does not suit its whole rim).
     pub grey_levels: bool,
     /// The grey-level fit's edge width s, px (the logistic step L((R − d)/s) of `profile`: a
-    /// standard deviation of π·s/√3 across the edge, the pixel's own size included); NaN for
-    /// a fit on edge points. Calibrate reads from it how far defocus can move the edge.
+    /// blur of standard deviation π·s/√3 across the edge beyond the pixel's own, which the
+    /// model averages over separately); NaN for a fit on edge points. Calibrate reads from it
+    /// how far defocus can move the edge.
     pub edge_width_px: f64,
 }
 
