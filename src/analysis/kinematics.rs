@@ -380,64 +380,84 @@ fn position_variance(f: &SideFit, tau: f64) -> V3 {
 /// line's tangential error, and a small error in it turns the normal by |g_t|·δτ/D. A bias in
 /// D moves the two sides' contact times in opposite directions and mostly cancels here.
 fn joint_contact(fits: &Fits, g: f64, contact_mm: f64, tau_start: f64) -> (f64, V3) {
-    let (tau, n, _) = joint_contact_from(fits, g, contact_mm, tau_start, tau_start, 30);
+    let (tau, n, _) = ContactCost::new(fits, g, contact_mm, tau_start).descend(tau_start);
     (tau, n)
 }
 
-/// `joint_contact`'s search started from `tau_from`, at most `newton_steps` of it (0: the cost
-/// at `tau_from` itself), the sides' weights taken at `tau_start` (so that the costs from
-/// different starts compare); also the cost where it ends.
-fn joint_contact_from(
-    fits: &Fits,
+/// `joint_contact`'s cost, the sides' weights taken at `tau_start` (so that the costs of
+/// searches from different starts compare: `physical_contact`).
+struct ContactCost<'a> {
+    fits: &'a Fits,
     g: f64,
     contact_mm: f64,
-    tau_start: f64,
-    tau_from: f64,
-    newton_steps: usize,
-) -> (f64, V3, f64) {
-    // The noise-free floor keeps exact (simulated, zero-residual) fits finite.
-    const FLOOR_MM2: f64 = 1e-12;
-    let var_pre = position_variance(&fits[0], tau_start) + position_variance(&fits[1], tau_start);
-    let var_post = position_variance(&fits[2], tau_start) + position_variance(&fits[3], tau_start);
-    let w_pre = var_pre.map(|v| 1.0 / v.max(FLOOR_MM2));
-    let w_post = var_post.map(|v| 1.0 / v.max(FLOOR_MM2));
-    let sep = |k: usize, tau: f64| pos_vel(&fits[k + 1], tau, g).0 - pos_vel(&fits[k], tau, g).0;
-    let point = |tau: f64| {
-        let (p, q) = (sep(0, tau), sep(2, tau));
+    w_pre: V3,
+    w_post: V3,
+}
+
+impl<'a> ContactCost<'a> {
+    fn new(fits: &'a Fits, g: f64, contact_mm: f64, tau_start: f64) -> ContactCost<'a> {
+        // The noise-free floor keeps exact (simulated, zero-residual) fits finite.
+        const FLOOR_MM2: f64 = 1e-12;
+        let var_pre =
+            position_variance(&fits[0], tau_start) + position_variance(&fits[1], tau_start);
+        let var_post =
+            position_variance(&fits[2], tau_start) + position_variance(&fits[3], tau_start);
+        ContactCost {
+            fits,
+            g,
+            contact_mm,
+            w_pre: var_pre.map(|v| 1.0 / v.max(FLOOR_MM2)),
+            w_post: var_post.map(|v| 1.0 / v.max(FLOOR_MM2)),
+        }
+    }
+
+    /// The separation b − a of phase pair `k` (0 before, 2 after) at τ.
+    fn sep(&self, k: usize, tau: f64) -> V3 {
+        pos_vel(&self.fits[k + 1], tau, self.g).0 - pos_vel(&self.fits[k], tau, self.g).0
+    }
+
+    /// The cost at τ and the contact point r it is measured against.
+    fn at(&self, tau: f64) -> (f64, V3) {
+        let (w_pre, w_post) = (&self.w_pre, &self.w_post);
+        let (p, q) = (self.sep(0, tau), self.sep(2, tau));
         let m =
             (w_pre.component_mul(&p) + w_post.component_mul(&q)).component_div(&(w_pre + w_post));
         let r = if m.norm() > 0.0 {
-            m * (contact_mm / m.norm())
+            m * (self.contact_mm / m.norm())
         } else {
             m
         };
-        let cost = (p - r).component_mul(&(p - r)).dot(&w_pre)
-            + (q - r).component_mul(&(q - r)).dot(&w_post);
+        let cost = (p - r).component_mul(&(p - r)).dot(w_pre)
+            + (q - r).component_mul(&(q - r)).dot(w_post);
         (cost, r)
-    };
-    let mut tau = tau_from;
-    // Newton on a smooth 1-D cost, with derivatives by differences over 0.1 µs (impact-time
-    // errors are tens of µs); steps are capped at 1 ms so a flat cost cannot throw τ away.
-    let h = 1e-7;
-    for _ in 0..newton_steps {
-        let (f0, f1, f2) = (point(tau - h).0, point(tau).0, point(tau + h).0);
-        let d1 = (f2 - f0) / (2.0 * h);
-        let d2 = (f2 - 2.0 * f1 + f0) / (h * h);
-        if d2.is_nan() || d2 <= 0.0 || !d1.is_finite() {
-            break;
-        }
-        let step = (d1 / d2).clamp(-1e-3, 1e-3);
-        tau -= step;
-        if step.abs() < 1e-13 {
-            break;
-        }
     }
-    let (cost, r) = point(tau);
-    if !tau.is_finite() || r.norm() == 0.0 {
-        let n = sep(0, tau_from) / contact_mm;
-        return (tau_from, n, f64::INFINITY);
+
+    /// The minimum the search from `tau_from` reaches: its τ, normal and cost.
+    fn descend(&self, tau_from: f64) -> (f64, V3, f64) {
+        let mut tau = tau_from;
+        // Newton on a smooth 1-D cost, with derivatives by differences over 0.1 µs (impact-time
+        // errors are tens of µs); steps are capped at 1 ms so a flat cost cannot throw τ away.
+        let h = 1e-7;
+        for _ in 0..30 {
+            let (f0, f1, f2) = (self.at(tau - h).0, self.at(tau).0, self.at(tau + h).0);
+            let d1 = (f2 - f0) / (2.0 * h);
+            let d2 = (f2 - 2.0 * f1 + f0) / (h * h);
+            if d2.is_nan() || d2 <= 0.0 || !d1.is_finite() {
+                break;
+            }
+            let step = (d1 / d2).clamp(-1e-3, 1e-3);
+            tau -= step;
+            if step.abs() < 1e-13 {
+                break;
+            }
+        }
+        let (cost, r) = self.at(tau);
+        if !tau.is_finite() || r.norm() == 0.0 {
+            let n = self.sep(0, tau_from) / self.contact_mm;
+            return (tau_from, n, f64::INFINITY);
+        }
+        (tau, r / r.norm(), cost)
     }
-    (tau, r / r.norm(), cost)
 }
 
 /// How far either side of where the first search began `physical_contact` looks for other
@@ -472,16 +492,16 @@ fn physical_contact(
     rel: (&V3, &V3),
 ) -> Option<(f64, V3)> {
     let steps = (OTHER_CONTACT_WINDOW_S / OTHER_CONTACT_STEP_S).round() as i64;
-    let cost_at = |tau: f64| joint_contact_from(fits, g, contact_mm, tau_start, tau, 0).2;
+    let cost = ContactCost::new(fits, g, contact_mm, tau_start);
     let grid: Vec<(f64, f64)> = (-steps..=steps)
         .map(|k| {
             let tau = tau_start + k as f64 * OTHER_CONTACT_STEP_S;
-            (tau, cost_at(tau))
+            (tau, cost.at(tau).0)
         })
         .collect();
     grid.windows(3)
         .filter(|w| w[1].1 <= w[0].1 && w[1].1 <= w[2].1)
-        .map(|w| joint_contact_from(fits, g, contact_mm, tau_start, w[1].0, 30))
+        .map(|w| cost.descend(w[1].0))
         .filter(|(tau, n, cost)| {
             tau.is_finite() && cost.is_finite() && turned_back(n, rel.0, rel.1)
         })
@@ -604,21 +624,32 @@ mod tests {
         assert!((dd.velocities[0] - va).norm() < 1e-6);
     }
 
+    /// The contact distance of `grazing`, mm.
+    const GRAZING_D_MM: f64 = 6.35;
+
+    /// A frictionless grazing impact at offset 0.97 D (D = `GRAZING_D_MM`, offset along y) of
+    /// spheres meeting with velocities `va`, `vb`, restitution `e`: the separation b − a at
+    /// contact, the normal, and the velocities after.
+    fn grazing(va: V3, vb: V3, e: f64) -> (V3, V3, V3, V3) {
+        let d = GRAZING_D_MM;
+        let b = 0.97 * d;
+        let r_c = V3::new((d * d - b * b).sqrt(), b, 0.0);
+        let n = r_c / d;
+        let g_n = (vb - va).dot(&n);
+        let dv = n * (0.5 * (1.0 + e) * g_n);
+        (r_c, n, va + dv, vb - dv)
+    }
+
     /// A grazing impact (offset 0.97 D) analysed with a contact distance 1 % too large, as a
     /// lab's diameter or px_per_mm can be: the pre-impact root alone turns the normal by about
     /// 2°, the joint fit of both sides by far less.
     #[test]
     fn grazing_normal_survives_a_wrong_contact_distance() {
         let g = 9806.65;
-        let (d, e): (f64, f64) = (6.35, 0.9);
-        let b = 0.97 * d;
-        let r_c = V3::new((d * d - b * b).sqrt(), b, 0.0);
-        let n = r_c / d;
+        let (d, e): (f64, f64) = (GRAZING_D_MM, 0.9);
         let va = V3::new(1000.0, -200.0, 5.0);
         let vb = V3::new(-1000.0, -150.0, -5.0);
-        let g_n = (vb - va).dot(&n);
-        let va2 = va + n * (0.5 * (1.0 + e) * g_n);
-        let vb2 = vb - n * (0.5 * (1.0 + e) * g_n);
+        let (r_c, n, va2, vb2) = grazing(va, vb, e);
         let pre: Vec<f64> = (1..15).map(|k| -(k as f64) * 1e-3).collect();
         let post: Vec<f64> = (1..15).map(|k| k as f64 * 1e-3).collect();
         let fits = [
@@ -652,15 +683,10 @@ mod tests {
     #[test]
     fn a_contact_the_spheres_do_not_turn_back_at_is_not_the_impact() {
         let g = 9806.65;
-        let (d, e): (f64, f64) = (6.35, 0.9);
-        let b = 0.97 * d;
-        let r_c = V3::new((d * d - b * b).sqrt(), b, 0.0);
-        let n = r_c / d;
+        let (d, e): (f64, f64) = (GRAZING_D_MM, 0.9);
         let va = V3::new(307.0, -643.0, 12.0);
         let vb = V3::new(-307.0, -643.0, 12.0);
-        let g_n = (vb - va).dot(&n);
-        let va2 = va + n * (0.5 * (1.0 + e) * g_n);
-        let vb2 = vb - n * (0.5 * (1.0 + e) * g_n);
+        let (r_c, _, va2, vb2) = grazing(va, vb, e);
         let pre: Vec<f64> = (1..15).map(|k| -(k as f64) * 1e-3).collect();
         let post: Vec<f64> = (1..15).map(|k| k as f64 * 1e-3).collect();
         let rel_post = vb2 - va2;
