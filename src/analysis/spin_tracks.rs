@@ -76,13 +76,19 @@ struct Problem<'a> {
 
 impl Problem<'_> {
     /// Residuals (3 per sighting, each scaled by √w) at ω, in track order.
+    ///
+    /// (The hot path of the spin fits, six calls a descent step: where J is the identity it is
+    /// not multiplied by, and without offsets M is not made, which changes no bit of the
+    /// result; the views' normal equations are a short list, not a map.)
     fn residuals(&self, omega: &V3, out: &mut Vec<f64>) {
         out.clear();
+        let with_offsets = self.offsets != Offsets::None;
+        let jac_is_identity = self.offsets != Offsets::Lifted;
         // Per track: its rotations, each sighting's offset Jacobian J, its place p̂ as if no
         // offset, and M = Σ w Rᵀ J / W, with which the place given an offset b is p̂ − M b.
         let mut per_track = Vec::with_capacity(self.tracks.len());
         // Per view: A b = c, the offset's normal equations with the places eliminated.
-        let mut normal: BTreeMap<usize, (Matrix3<f64>, V3)> = BTreeMap::new();
+        let mut normal: Vec<(usize, Matrix3<f64>, V3)> = Vec::new();
         let all_rots: Vec<Rotation3<f64>> = self
             .taus
             .iter()
@@ -93,15 +99,26 @@ impl Problem<'_> {
             let (mut sum, mut m, mut wsum) = (V3::zeros(), Matrix3::zeros(), 0.0);
             for (((s, _), r), j) in t.iter().zip(rots()).zip(jacs) {
                 sum += s.weight * r.inverse_transform_vector(&s.rel_mm);
-                m += s.weight * r.matrix().transpose() * j;
+                if jac_is_identity {
+                    if with_offsets {
+                        m += s.weight * r.matrix().transpose();
+                    }
+                } else {
+                    m += s.weight * r.matrix().transpose() * j;
+                }
                 wsum += s.weight;
             }
             let (p, m) = (sum / wsum, m / wsum);
-            if self.offsets != Offsets::None {
+            if with_offsets {
                 let view = t[0].0.track.0;
-                let (a, c) = normal
-                    .entry(view)
-                    .or_insert_with(|| (Matrix3::zeros(), V3::zeros()));
+                let at = match normal.iter().position(|(v, _, _)| *v == view) {
+                    Some(at) => at,
+                    None => {
+                        normal.push((view, Matrix3::zeros(), V3::zeros()));
+                        normal.len() - 1
+                    }
+                };
+                let (_, a, c) = &mut normal[at];
                 for (((s, _), r), j) in t.iter().zip(rots()).zip(jacs) {
                     let e = j - r.matrix() * m;
                     *a += s.weight * e.transpose() * e;
@@ -112,26 +129,28 @@ impl Problem<'_> {
         }
         // An offset along the spin axis is a place's own component: nothing fixes it, and the
         // small ridge sets it to zero.
-        let offsets: BTreeMap<usize, V3> = normal
+        let offsets: Vec<(usize, V3)> = normal
             .into_iter()
-            .map(|(v, (a, c))| {
+            .map(|(v, a, c)| {
                 let ridge = Matrix3::identity() * (1e-6 * a.trace() / 3.0);
                 let b = (a + ridge).try_inverse().map_or(V3::zeros(), |inv| inv * c);
                 (v, b)
             })
             .collect();
         for (t, (idx, jacs, p, m)) in self.tracks.iter().zip(&per_track) {
+            let view = t[0].0.track.0;
             let b = offsets
-                .get(&t[0].0.track.0)
-                .copied()
-                .unwrap_or_else(V3::zeros);
-            let place = p - m * b;
+                .iter()
+                .find(|(v, _)| *v == view)
+                .map_or_else(V3::zeros, |(_, b)| *b);
+            let place = if with_offsets { p - m * b } else { *p };
             for (((s, _), r), j) in t
                 .iter()
                 .zip(idx.iter().map(|&i| &all_rots[i]))
                 .zip(jacs.iter())
             {
-                let d = (s.rel_mm - r * place - j * b) * s.weight.sqrt();
+                let jb = if jac_is_identity { b } else { j * b };
+                let d = (s.rel_mm - r * place - jb) * s.weight.sqrt();
                 out.extend_from_slice(d.as_slice());
             }
         }
