@@ -206,7 +206,7 @@ pub fn reconcile(
                 frame_influence: influence,
             };
             let warning = format!(
-                "sphere {name}: no markers tracked after the impact; its spin after is the spin before plus the change the impulse implies"
+                "sphere {name}: too few markers tracked after the impact (none, or under two tracks' worth); its spin after is the spin before plus the change the impulse implies"
             );
             (Some(pre.clone()), Some(post), check, Some(warning))
         }
@@ -221,7 +221,7 @@ pub fn reconcile(
                 frame_influence: influence,
             };
             let warning = format!(
-                "sphere {name}: no markers tracked before the impact; its spin before is the spin after minus the change the impulse implies"
+                "sphere {name}: too few markers tracked before the impact (none, or under two tracks' worth); its spin before is the spin after minus the change the impulse implies"
             );
             (Some(pre), Some(post.clone()), check, Some(warning))
         }

@@ -425,7 +425,8 @@ fn observations_once(
         .collect();
     // The impulse–spin check (impulse.rs): the velocities' change fixes each sphere's spin
     // change; the spins are checked against it, combined with it, or completed by it.
-    let mut reconciled: [Option<SpinFit>; 4] = [0, 1, 2, 3].map(|k| measured[k].fit.clone());
+    let mut reconciled: [Option<SpinFit>; 4] =
+        [0, 1, 2, 3].map(|k| measured[k].reportable().cloned());
     let mut spin_checks: [Option<report::SpinCheck>; 2] = [None, None];
     let k_inertia = cfg.spheres.inertia_factor;
     // The velocities' and the normal's σ with the jackknife over frames (the propagated

@@ -170,6 +170,20 @@ pub struct SpinMeasurement {
     pub markers_per_frame: HashMap<usize, u32>,
     /// The frame-pair rotations the fit rests on.
     pub pairs: Vec<PairRotation>,
+    /// How many marker tracks the fit rests on (`spin_tracks::effective_tracks`); infinite for
+    /// the thesis's method, which is kept as the thesis had it.
+    pub effective_tracks: f64,
+}
+
+impl SpinMeasurement {
+    /// The fit, where it may be reported: resting on at least
+    /// `spin_tracks::MIN_EFFECTIVE_TRACKS` tracks. (The others still carry dots for the second
+    /// pass: a spin too weak to report still says where a dot has turned to better than none.)
+    pub fn reportable(&self) -> Option<&SpinFit> {
+        self.fit
+            .as_ref()
+            .filter(|_| self.effective_tracks >= spin_tracks::MIN_EFFECTIVE_TRACKS)
+    }
 }
 
 /// Frame-pair rotations of sphere `s` over the given frames, tracked with `omega` as the
@@ -223,21 +237,24 @@ pub fn measure(
         // Whole marker tracks first: they use every sighting, also of a marker no other shares
         // a frame pair with. The pair rotations where the tracks are too few or too short, and
         // for the thesis's method, which is kept as the thesis had it.
-        let fit = match method {
+        let (fit, effective_tracks) = match method {
             RotationMethod::Kabsch => {
                 let start = rotation::ls_omega_of(&pairs).unwrap_or(omega);
                 // Each phase of each sphere its own sources for the model terms' influence.
                 let first = frames.first().copied().unwrap_or(0);
                 let sources = spin_tracks::model_sources(first, s);
-                spin_tracks::fit(&sightings(obs, &tracked), start, sources)
-                    .or_else(|| rotation::fit_spin(&pairs))
+                let seen = sightings(obs, &tracked);
+                let fit =
+                    spin_tracks::fit(&seen, start, sources).or_else(|| rotation::fit_spin(&pairs));
+                (fit, spin_tracks::effective_tracks(&seen))
             }
-            RotationMethod::Thesis => rotation::fit_spin(&pairs),
+            RotationMethod::Thesis => (rotation::fit_spin(&pairs), f64::INFINITY),
         };
         out = SpinMeasurement {
             fit,
             markers_per_frame: markers_per_frame(&tracked),
             pairs,
+            effective_tracks,
         };
         match &out.fit {
             Some(f) => omega = f.omega,
