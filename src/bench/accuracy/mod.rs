@@ -694,6 +694,41 @@ mod tests {
         );
     }
 
+    /// The ψ and β goals' line: β counted only where the true ψ1 is 0.2 or more (a β 2.6 off
+    /// at ψ1 = 0.03 is not a miss), ψ everywhere, both on the goals' data only.
+    #[test]
+    fn psi_and_beta_on_the_goals_data_count_beta_only_where_psi1_says_something() {
+        let case = |seed: u64, width: u32, psi1: f64, dpsi: f64, dbeta: f64| {
+            let c = Case {
+                tube_angle_deg: 30.0,
+                impact_offset: 0.5,
+                noise_sigma_grey: 2.0,
+                width,
+                height: if width == 240 { 192 } else { 480 },
+                seed,
+                looks: None,
+            };
+            let r = CaseResult {
+                psi1: Some((dpsi, 0.01)),
+                psi2: Some((-dpsi, 0.01)),
+                beta: Some((dbeta, 0.01)),
+                true_psi1: psi1,
+                ..Default::default()
+            };
+            (c, r)
+        };
+        let results = vec![
+            case(1, 240, 0.03, 0.01, 2.6),
+            case(2, 240, 0.8, 0.12, 0.2),
+            case(3, 240, 1.5, 0.02, 0.05),
+            case(4, 640, 1.5, 0.5, 0.9),
+        ];
+        assert_eq!(
+            table::spin_goals_line(&results),
+            "ψ, β on the goals' data (3 experiments with a spin): max |Δψ1| 0.1200, 1 above 0.1; max |Δψ2| 0.1200, 1 above 0.1; |Δβ| where the true ψ1 ≥ 0.2 (2): max 0.2000, 1 above 0.15"
+        );
+    }
+
     /// `--looks varied` reports every family it drew, and pooled: a family dropped from the
     /// draw or from the table fails here.
     #[test]

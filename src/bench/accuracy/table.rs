@@ -266,6 +266,7 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
             errs.iter().filter(|x| **x > 0.03).count()
         );
     }
+    let _ = writeln!(s, "{}", spin_goals_line(results));
     let spins_measured = ok.iter().filter(|r| r.psi1.is_some()).count();
     let _ = writeln!(
         s,
@@ -419,4 +420,42 @@ pub(super) fn by_look(results: &[(Case, CaseResult)]) -> String {
         );
     }
     s
+}
+
+/// ψ1, ψ2 and β against the measurement issue's goals, on its data (240×192, σ = 2): the
+/// largest |Δψ1|, |Δψ2| and how many exceed 0.1, and |Δβ| only where the true ψ1 ≥ 0.2 (β =
+/// −ψ2/ψ1 means nothing as ψ1 → 0), its largest and how many exceed 0.15.
+pub(super) fn spin_goals_line(results: &[(Case, CaseResult)]) -> String {
+    let on_goal: Vec<&CaseResult> = results
+        .iter()
+        .filter(|(c, r)| {
+            r.failed.is_none() && c.width == 240 && c.height == 192 && c.noise_sigma_grey == 2.0
+        })
+        .map(|(_, r)| r)
+        .collect();
+    let errs = |pick: &dyn Fn(&CaseResult) -> Option<(f64, f64)>,
+                only: &dyn Fn(&CaseResult) -> bool| {
+        on_goal
+            .iter()
+            .filter(|r| only(r))
+            .filter_map(|r| pick(r).map(|(e, _)| e.abs()))
+            .collect::<Vec<f64>>()
+    };
+    let every = |_: &CaseResult| true;
+    let psi1 = errs(&|r| r.psi1, &every);
+    let psi2 = errs(&|r| r.psi2, &every);
+    let beta = errs(&|r| r.beta, &|r| r.true_psi1 >= 0.2);
+    let max = |v: &[f64]| v.iter().copied().fold(0.0f64, f64::max);
+    let above = |v: &[f64], k: f64| v.iter().filter(|x| **x > k).count();
+    format!(
+        "ψ, β on the goals' data ({} experiments with a spin): max |Δψ1| {:.4}, {} above 0.1; max |Δψ2| {:.4}, {} above 0.1; |Δβ| where the true ψ1 ≥ 0.2 ({}): max {:.4}, {} above 0.15",
+        psi1.len(),
+        max(&psi1),
+        above(&psi1, 0.1),
+        max(&psi2),
+        above(&psi2, 0.1),
+        beta.len(),
+        max(&beta),
+        above(&beta, 0.15)
+    )
 }
