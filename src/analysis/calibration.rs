@@ -114,6 +114,34 @@ pub(super) fn calibrate_mirror(obs: &[FrameObs], views: &mut [View]) -> Option<C
     })
 }
 
+/// How well the x both views see fixes the mirror's scale, as a fraction of it: the σ of the
+/// slope of mirror x against direct x over the recording (least squares, from its residuals),
+/// with the views as they are (after `calibrate_mirror`, the slope is 1). Every coordinate the
+/// mirror alone gives (z) carries that fraction; on an out-of-plane rig whose refinement rested
+/// on 33 pairs the refined scale was 0.10 % off, and two z velocities of 230 mm/s, fitted over
+/// 76 frames, came out 0.22–0.26 mm/s off with σ 0.04. None without three pairs spread in x.
+pub(super) fn mirror_scale_sigma(obs: &[FrameObs], views: &[View]) -> Option<f64> {
+    slope_sigma(&x_pairs(obs, views)?)
+}
+
+/// The σ of the least-squares slope through `pairs` (from the residuals, n − 2 degrees of
+/// freedom) as a fraction of the slope.
+fn slope_sigma(pairs: &[(f64, f64)]) -> Option<f64> {
+    let line = fit_line(pairs)?;
+    let n = pairs.len();
+    if n < 3 {
+        return None;
+    }
+    let mx = pairs.iter().map(|p| p.0).sum::<f64>() / n as f64;
+    let sxx: f64 = pairs.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let ss: f64 = pairs
+        .iter()
+        .map(|p| (p.1 - (line.slope * p.0 + line.intercept)).powi(2))
+        .sum();
+    let sigma = (ss / (n - 2) as f64 / sxx).sqrt() / line.slope.abs();
+    sigma.is_finite().then_some(sigma)
+}
+
 /// The geometry's checks on the flights: the shared x's residuals against y and z and free fall
 /// per view, recorded in `c`, and the warnings they give.
 pub(super) fn check_geometry(
@@ -296,4 +324,36 @@ fn geometry_warnings(c: &Calibration, span_y_z_mm: [f64; 2], g: f64) -> Vec<Stri
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::slope_sigma;
+
+    /// The mirror scale's σ is the slope's own: over 2000 draws of 33 pairs (x over 20 mm, the
+    /// mirror's x 0.1 % off in scale, 0.035 mm of noise, as on the out-of-plane rig that showed
+    /// the need), the fitted slope lies within ±1σ of the truth about 68 % of the time, and
+    /// never beyond 5σ.
+    #[test]
+    fn the_mirror_scales_sigma_covers_its_slope() {
+        let mut rng = hw_sim::Rng::from_state(5);
+        let (mut within, mut beyond, draws) = (0, 0, 2000);
+        for _ in 0..draws {
+            let pairs: Vec<(f64, f64)> = (0..33)
+                .map(|i| {
+                    let x = -10.0 + 20.0 * i as f64 / 32.0;
+                    (x, 1.001 * x + 0.2 + 0.035 * rng.gaussian())
+                })
+                .collect();
+            let line = super::fit_line(&pairs).expect("pairs spread in x");
+            let sigma = slope_sigma(&pairs).expect("a σ");
+            let z = (line.slope - 1.001) / (sigma * line.slope);
+            within += usize::from(z.abs() <= 1.0);
+            beyond += usize::from(z.abs() > 5.0);
+        }
+        let share = within as f64 / draws as f64;
+        assert!((0.64..=0.72).contains(&share), "±1σ {share}");
+        assert_eq!(beyond, 0);
+        assert!(slope_sigma(&[(0.0, 0.0), (1.0, 1.0)]).is_none());
+    }
 }

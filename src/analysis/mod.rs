@@ -312,9 +312,13 @@ fn observations_once(
     radius_misfit::widen(&mut obs);
     world::place(&mut obs, &views);
     let mut calibration = calibrate_mirror(&obs, &mut views);
-    if calibration.as_ref().is_some_and(|c| c.refined) {
+    // What the refined mirror scale is known to, as a fraction (its z velocities carry it).
+    let mirror_scale_sigma = if calibration.as_ref().is_some_and(|c| c.refined) {
         world::place(&mut obs, &views);
-    }
+        calibration::mirror_scale_sigma(&obs, &views).unwrap_or(0.0)
+    } else {
+        0.0
+    };
     let hidden_notes = overlap::widen_hidden(&mut obs, &views);
     let g = cfg.analysis.gravity_mm_s2;
     let contact_mm = cfg.spheres.contact_mm();
@@ -332,7 +336,7 @@ fn observations_once(
     let min_side = cfg.analysis.min_frames_per_side as usize;
     let radii = [cfg.spheres.sphere(0).0 / 2.0, cfg.spheres.sphere(1).0 / 2.0];
     for _ in 0..8 {
-        let fits = fit_all(&obs, &views, split, split, 0.5 * period, g);
+        let fits = fit_all(&obs, &views, split, split, 0.5 * period, g, min_side);
         for (k, side) in fits.iter().enumerate() {
             let n = side.axes[0].map(|l| l.n).unwrap_or(0);
             if n < min_side {
@@ -367,7 +371,7 @@ fn observations_once(
         }
     }
     // Final fits referenced at the impact time, so p0 and v are the state at impact.
-    let fits = fit_all(&obs, &views, split, split, 0.5 * period, g);
+    let fits = fit_all(&obs, &views, split, split, 0.5 * period, g, min_side);
     let mut warnings = input_warnings;
     warnings.extend(hidden_notes);
     // Momentum across the impact (`momentum`): the four phases' velocities checked against it
@@ -393,7 +397,7 @@ fn observations_once(
 
     // Spins, one constant vector per sphere and flight phase.
     let method = cfg.analysis.rotation;
-    let ph = flight_phases(&obs, &views, split, 0.5 * period, g);
+    let ph = flight_phases(&obs, &views, split, 0.5 * period, g, min_side);
     // Each phase's x velocity from the direct view against the mirror's (`x_views_disagree`):
     // where they differ beyond twice their σ, the excess is one more error of that velocity.
     let x_views: [Option<f64>; 4] = [0, 1, 2, 3].map(|k| {
@@ -410,10 +414,15 @@ fn observations_once(
         Some(excess)
     });
     // Each phase's velocity bias the centres may share: the views' x disagreement, and the
-    // misfits their radii show (`phases::stray_velocity`), the larger of the two on x.
+    // misfits their radii show (`phases::stray_velocity`), the larger of the two on x; and on
+    // z, which the mirror alone measures, what the refined mirror scale's σ does to it
+    // (`calibration::mirror_scale_sigma`), in quadrature.
     let shared_bias: [[f64; 3]; 4] = [0, 1, 2, 3].map(|k| {
         let mut stray = phases::stray_velocity(&obs, &views, k % 2, &ph[k]);
         stray[0] = stray[0].max(x_views[k].unwrap_or(0.0));
+        if let Some(z) = &fits[k].axes[2] {
+            stray[2] = stray[2].hypot(z.v.abs() * mirror_scale_sigma);
+        }
         stray
     });
     if let Some(c) = calibration.as_mut() {
@@ -550,7 +559,7 @@ fn observations_once(
         ));
     }
     for &i in &lost_axes {
-        let missing = phases_missing_axis(&obs, &views, split, 0.5 * period, g, i);
+        let missing = phases_missing_axis(&obs, &views, split, 0.5 * period, g, i, min_side);
         // The view that alone measures this axis, where the spheres hid each other.
         let only = views
             .iter()
@@ -836,6 +845,33 @@ mod tests {
             spheres: [centres_px.map(m).to_vec(), vec![None, None]],
             position_mm: [None, None],
         }
+    }
+
+    /// After the impact (no tube there), a sphere the direct view sees in fewer frames than a
+    /// phase needs takes its phase from the span the mirror saw it in; before the impact it
+    /// keeps the direct view's span (the mirror may see it still rolling in its tube).
+    #[test]
+    fn a_phase_after_the_impact_the_direct_view_hardly_saw_takes_the_mirrors_span() {
+        let dt = 1e-3;
+        let mut obs: Vec<FrameObs> = (0..40)
+            .map(|k| frame_of_a(k, dt, [[100.0, 40.0], [100.0, 140.0]], 0.0))
+            .collect();
+        // Direct view: frames 5–8 before the split (19.5 ms), 24–27 after; the mirror all along.
+        for (k, f) in obs.iter_mut().enumerate() {
+            if !(5..=8).contains(&k) && !(24..=27).contains(&k) {
+                f.spheres[0][0] = None;
+            }
+        }
+        let (split, guard) = (19.5e-3, 0.5e-3);
+        let after = phases::side_frames(&obs, 0, false, split, guard, 5);
+        assert_eq!(after, (21..40).collect::<Vec<_>>());
+        // Where four direct frames are a phase's worth, the direct view's span is kept.
+        assert_eq!(
+            phases::side_frames(&obs, 0, false, split, guard, 4),
+            (24..=27).collect::<Vec<_>>()
+        );
+        let before = phases::side_frames(&obs, 0, true, split, guard, 5);
+        assert_eq!(before, (5..=8).collect::<Vec<_>>());
     }
 
     #[test]

@@ -198,13 +198,18 @@ const MIN_PRIMARY_FRAMES: usize = 3;
 /// Frames of one flight phase of sphere `s` (before or after `split`, more than `guard` away):
 /// only the time span in which the primary view (direct, when configured) saw it, because the
 /// other view may still see the sphere rolling in its tube, where free flight does not hold;
-/// unless the primary view saw it in fewer than `MIN_PRIMARY_FRAMES` frames there.
+/// unless the primary view saw it in fewer than `MIN_PRIMARY_FRAMES` frames there, or, after
+/// the impact (where no tube holds it), in fewer than `min_side` (the frames a phase needs):
+/// a sphere the other one hides in the direct view after an impact whose normal leans towards
+/// the camera is seen there in 3–4 frames, and its phase, cut to that span, was too short to
+/// analyse while the mirror saw it fly for a dozen more.
 pub(super) fn side_frames(
     obs: &[FrameObs],
     s: usize,
     pre: bool,
     split: f64,
     guard: f64,
+    min_side: usize,
 ) -> Vec<usize> {
     let on_side = |t: f64| {
         if pre {
@@ -219,7 +224,7 @@ pub(super) fn side_frames(
         .iter()
         .filter(|f| on_side(f.time_s) && f.spheres[s][0].is_some())
         .count();
-    let any_view = primary_frames < MIN_PRIMARY_FRAMES;
+    let any_view = primary_frames < MIN_PRIMARY_FRAMES || (!pre && primary_frames < min_side);
     let seen = || {
         obs.iter()
             .filter(move |f| {
@@ -310,9 +315,9 @@ pub(super) fn primary_view_lost(obs: &[FrameObs], split: f64, guard: f64) -> boo
 }
 
 /// [a pre, b pre, a post, b post]
-pub(super) fn phases(obs: &[FrameObs], split: f64, guard: f64) -> [Vec<usize>; 4] {
+pub(super) fn phases(obs: &[FrameObs], split: f64, guard: f64, min_side: usize) -> [Vec<usize>; 4] {
     [(0, true), (1, true), (0, false), (1, false)]
-        .map(|(s, pre)| side_frames(obs, s, pre, split, guard))
+        .map(|(s, pre)| side_frames(obs, s, pre, split, guard, min_side))
 }
 
 /// The frames of each phase in which the sphere flies freely: starting from the 15 frames next
@@ -326,8 +331,9 @@ pub(super) fn flight_phases(
     split: f64,
     guard: f64,
     g: f64,
+    min_side: usize,
 ) -> [Vec<usize>; 4] {
-    let ph = phases(obs, split, guard);
+    let ph = phases(obs, split, guard, min_side);
     [0, 1, 2, 3].map(|k| free_flight(obs, views, k % 2, &ph[k], k < 2, g))
 }
 
@@ -391,8 +397,9 @@ pub(super) fn fit_all(
     split: f64,
     guard: f64,
     g: f64,
+    min_side: usize,
 ) -> Fits {
-    let ph = flight_phases(obs, views, split, guard, g);
+    let ph = flight_phases(obs, views, split, guard, g, min_side);
     // The final fits' σ floored at the centres' own (`fit_line`); while a phase grows (above)
     // it is not, so which frames a phase holds does not change.
     let mut fits = [0, 1, 2, 3].map(|k| {
@@ -471,8 +478,9 @@ pub(super) fn phases_missing_axis(
     guard: f64,
     g: f64,
     i: usize,
+    min_side: usize,
 ) -> Vec<&'static str> {
-    let ph = flight_phases(obs, views, split, guard, g);
+    let ph = flight_phases(obs, views, split, guard, g, min_side);
     let names = ["a before", "b before", "a after", "b after"];
     (0..4)
         .filter(|&k| series(obs, views, k % 2, &ph[k])[i].is_empty())
