@@ -35,11 +35,13 @@ pub(super) fn x_pair(f: &FrameObs, views: &[View], s: usize) -> Option<(f64, f64
     ))
 }
 
-/// A least-squares line y = slope·x + intercept, and the extent of x it was fitted over.
+/// A least-squares line y = slope·x + intercept, the extent of x it was fitted over, and x's
+/// sum of squared deviations from its mean (what fixes the slope).
 pub(crate) struct Line {
     pub slope: f64,
     pub intercept: f64,
     pub x_span: f64,
+    pub sxx: f64,
 }
 
 /// The least-squares line through (x, y) pairs; None without pairs or without spread in x.
@@ -64,6 +66,7 @@ pub(crate) fn fit_line(pairs: &[(f64, f64)]) -> Option<Line> {
         slope,
         intercept: my - slope * mx,
         x_span: hi - lo,
+        sxx,
     })
 }
 
@@ -132,13 +135,11 @@ fn slope_sigma(pairs: &[(f64, f64)]) -> Option<f64> {
     if n < 3 {
         return None;
     }
-    let mx = pairs.iter().map(|p| p.0).sum::<f64>() / n as f64;
-    let sxx: f64 = pairs.iter().map(|p| (p.0 - mx).powi(2)).sum();
     let ss: f64 = pairs
         .iter()
         .map(|p| (p.1 - (line.slope * p.0 + line.intercept)).powi(2))
         .sum();
-    let sigma = (ss / (n - 2) as f64 / sxx).sqrt() / line.slope.abs();
+    let sigma = (ss / (n - 2) as f64 / line.sxx).sqrt() / line.slope.abs();
     sigma.is_finite().then_some(sigma)
 }
 

@@ -60,19 +60,10 @@ pub const MIN_EFFECTIVE_TRACKS: f64 = 2.0;
 /// How many tracks the sightings amount to: (Σ n)²/Σ n² over the tracks seen at least
 /// `MIN_TRACK_SIGHTINGS` times, n each one's sightings (k tracks of equal length count k).
 pub fn effective_tracks(sightings: &[Sighting]) -> f64 {
-    let mut by_track: BTreeMap<(usize, usize), usize> = BTreeMap::new();
-    for s in sightings {
-        if s.weight > 0.0 && s.rel_mm.iter().all(|x| x.is_finite()) {
-            *by_track.entry(s.track).or_default() += 1;
-        }
-    }
-    let (n1, n2) = by_track
-        .values()
-        .filter(|n| **n >= MIN_TRACK_SIGHTINGS)
-        .fold((0.0, 0.0), |(a, b), n| {
-            let n = *n as f64;
-            (a + n, b + n * n)
-        });
+    let (n1, n2) = tracks_of(sightings).values().fold((0.0, 0.0), |(a, b), v| {
+        let n = v.len() as f64;
+        (a + n, b + n * n)
+    });
     if n2 > 0.0 {
         n1 * n1 / n2
     } else {
@@ -410,14 +401,21 @@ fn fit_with(sightings: &[Sighting], start: V3, offsets: Offsets) -> Option<SpinF
     covariance(&problem, omega)
 }
 
-fn build(kept: &[Sighting], offsets: Offsets) -> Option<Problem<'_>> {
+/// The usable sightings (a weight, a finite place) by track, of the tracks seen at least
+/// `MIN_TRACK_SIGHTINGS` times: what a fit rests on.
+fn tracks_of(sightings: &[Sighting]) -> BTreeMap<(usize, usize), Vec<&Sighting>> {
     let mut by_track: BTreeMap<(usize, usize), Vec<&Sighting>> = BTreeMap::new();
-    for s in kept {
+    for s in sightings {
         if s.weight > 0.0 && s.rel_mm.iter().all(|x| x.is_finite()) {
             by_track.entry(s.track).or_default().push(s);
         }
     }
     by_track.retain(|_, v| v.len() >= MIN_TRACK_SIGHTINGS);
+    by_track
+}
+
+fn build(kept: &[Sighting], offsets: Offsets) -> Option<Problem<'_>> {
+    let by_track = tracks_of(kept);
     let all: Vec<&Sighting> = by_track.values().flatten().copied().collect();
     let wsum: f64 = all.iter().map(|s| s.weight).sum();
     if all.is_empty() || wsum <= 0.0 {
