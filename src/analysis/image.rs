@@ -125,6 +125,17 @@ impl GreyImage {
         most as f64
     }
 
+    /// The pixels of the square of half-side `reach` round `centre` that lie in the image:
+    /// columns `[0]..=[1]` and rows `[2]..=[3]` (the edges rounded outwards).
+    pub fn box_around(&self, centre: [f64; 2], reach: f64) -> [usize; 4] {
+        [
+            (centre[0] - reach).floor().max(0.0) as usize,
+            ((centre[0] + reach).ceil() as usize).min(self.width.saturating_sub(1)),
+            (centre[1] - reach).floor().max(0.0) as usize,
+            ((centre[1] + reach).ceil() as usize).min(self.height.saturating_sub(1)),
+        ]
+    }
+
     /// Bilinear interpolation; None outside the image.
     pub fn sample(&self, u: f64, v: f64) -> Option<f64> {
         if !(u >= 0.0 && v >= 0.0) {
