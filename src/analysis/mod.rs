@@ -32,6 +32,7 @@ pub mod stages;
 mod survey;
 pub use survey::{blob_survey, blobs, measure};
 pub mod spin;
+mod spin_search;
 pub mod spin_tracks;
 pub mod thesis;
 pub mod tracking;
@@ -493,6 +494,16 @@ fn observations_once(
         .filter(|&k| reconciled[k].is_none())
         .map(|k| phase_names[k])
         .collect();
+    for (k, m) in measured.iter().enumerate() {
+        if m.searched && m.reportable().is_some() {
+            warnings.push(format!(
+                "sphere {} {} the impact: its markers turned too far between frames to be followed from rest; its spin ({:.0} rad/s) was followed from a search over rotations per frame",
+                ["a", "b"][k % 2],
+                ["before", "after"][k / 2],
+                m.fit.as_ref().map_or(0.0, |f| f.omega.norm()),
+            ));
+        }
+    }
     let spin_fits: Option<[&SpinFit; 4]> = match [0, 1, 2, 3].map(|k| reconciled[k].as_ref()) {
         [Some(a), Some(b), Some(c), Some(d)] => Some([a, b, c, d]),
         _ => None,

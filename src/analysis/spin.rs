@@ -7,6 +7,7 @@
 
 use super::markers::MarkerObs;
 use super::rotation::{self, PairRotation, RotationMethod, SpinFit, V3};
+use super::spin_search;
 use super::spin_tracks::{self, Sighting};
 use super::tracking::FrameObs;
 use nalgebra::Rotation3;
@@ -173,6 +174,9 @@ pub struct SpinMeasurement {
     /// How many marker tracks the fit rests on (`spin_tracks::effective_tracks`); infinite for
     /// the thesis's method, which is kept as the thesis had it.
     pub effective_tracks: f64,
+    /// The spin was followed from a search over rotations per frame (`spin_search`), not from
+    /// rest: the markers turned too far between frames for the first pass's gate.
+    pub searched: bool,
 }
 
 impl SpinMeasurement {
@@ -222,17 +226,61 @@ fn markers_per_frame(tracked: &Tracked) -> HashMap<usize, u32> {
     tracked.iter().map(|(k, m)| (*k, m.len() as u32)).collect()
 }
 
-/// Spin of sphere `s` over the given frames (one flight phase).
+/// Spin of sphere `s` over the given frames (one flight phase): followed from rest, and where a
+/// search over rotations per frame (`spin_search`) finds a spin that carries clearly more
+/// markers onto the next frame's, followed from that spin instead.
 pub fn measure(
     obs: &[FrameObs],
     frames: &[usize],
     s: usize,
     method: RotationMethod,
 ) -> SpinMeasurement {
-    let mut out = SpinMeasurement::default();
-    let mut omega = V3::zeros();
     // First pass without prediction and a wide gate; then predicted with the spin found.
-    for gate in [1.3, 0.6] {
+    let from_rest = follow(obs, frames, s, method, V3::zeros(), [1.3, 0.6]);
+    if method == RotationMethod::Thesis {
+        return from_rest;
+    }
+    let gate = 0.6;
+    let omega_of = |m: &SpinMeasurement| m.fit.as_ref().map_or(V3::zeros(), |f| f.omega);
+    let rest_links = spin_search::links(obs, frames, s, omega_of(&from_rest), gate);
+    // Clearly more: a quarter more links and two besides, so that the search's grid (a coarse
+    // start, scored on the phase's first frames only) never displaces a spin followed well.
+    let clearly_more = |n: f64| n > 1.25 * rest_links + 2.0;
+    let Some((start, n)) = spin_search::search(obs, frames, s, gate) else {
+        return from_rest;
+    };
+    if !clearly_more(n) {
+        return from_rest;
+    }
+    let searched = follow(obs, frames, s, method, start, [gate, gate]);
+    if clearly_more(spin_search::links(
+        obs,
+        frames,
+        s,
+        omega_of(&searched),
+        gate,
+    )) {
+        SpinMeasurement {
+            searched: true,
+            ..searched
+        }
+    } else {
+        from_rest
+    }
+}
+
+/// Tracks and fits sphere `s`'s markers over the given frames, once per gate, each pass
+/// predicted with the spin the pass before found (the first with `omega`).
+fn follow(
+    obs: &[FrameObs],
+    frames: &[usize],
+    s: usize,
+    method: RotationMethod,
+    mut omega: V3,
+    gates: [f64; 2],
+) -> SpinMeasurement {
+    let mut out = SpinMeasurement::default();
+    for gate in gates {
         let (tracked, pairs) = tracked_pairs(obs, frames, s, method, omega, gate);
         // Whole marker tracks first: they use every sighting, also of a marker no other shares
         // a frame pair with. The pair rotations where the tracks are too few or too short, and
@@ -255,6 +303,7 @@ pub fn measure(
             markers_per_frame: markers_per_frame(&tracked),
             pairs,
             effective_tracks,
+            searched: false,
         };
         match &out.fit {
             Some(f) => omega = f.omega,
