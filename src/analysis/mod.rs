@@ -21,6 +21,7 @@ pub mod lens;
 pub mod line_fit;
 pub mod markers;
 mod momentum;
+mod names_through_impact;
 mod overlap;
 mod phases;
 mod radius_misfit;
@@ -310,6 +311,17 @@ fn observations_once(
     };
     let (mut views, mut obs) = (views, obs);
     markers::drop_in_the_other_disc(&mut obs);
+    // Names checked through the impact before anything pairs the spheres' frames up (the
+    // closest approach does not depend on the names).
+    let renamed = match phases::closest_approach(&obs, &views, 0) {
+        Some((t, _)) => {
+            let names: Vec<&str> = views.iter().map(|v| v.kind.name()).collect();
+            let r_mm = cfg.spheres.sphere(0).0.min(cfg.spheres.sphere(1).0) / 2.0;
+            let radii_px: Vec<f64> = views.iter().map(|v| v.px_per_mm * r_mm).collect();
+            names_through_impact::check(&mut obs, &names, &radii_px, t)
+        }
+        None => Vec::new(),
+    };
     radius_misfit::widen(&mut obs);
     world::place(&mut obs, &views);
     let mut calibration = calibrate_mirror(&obs, &mut views);
@@ -374,6 +386,7 @@ fn observations_once(
     // Final fits referenced at the impact time, so p0 and v are the state at impact.
     let fits = fit_all(&obs, &views, split, split, 0.5 * period, g, min_side);
     let mut warnings = input_warnings;
+    warnings.extend(renamed);
     warnings.extend(hidden_notes);
     // Momentum across the impact (`momentum`): the four phases' velocities checked against it
     // and, where they agree within 3σ, combined under it from here on.

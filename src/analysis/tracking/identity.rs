@@ -18,7 +18,6 @@ pub(super) fn label_split<'a>(
     predicted: [Option<[f64; 2]>; 2],
     radius_px: f64,
 ) -> [Option<&'a CircleFit>; 2] {
-    const X_MARGIN_MM: f64 = 0.3;
     let by_x = |f: &CircleFit, s: usize| x[s].map(|xs| (world_x(view, f.centre) - xs).abs());
     let by_px = |f: &CircleFit, s: usize| {
         predicted[s].map(|p| (f.centre[0] - p[0]).hypot(f.centre[1] - p[1]))
@@ -75,6 +74,23 @@ pub(super) fn extrapolate(history: &[(f64, f64)], t: f64, max_gap_s: f64) -> Opt
     let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
     Some(mx + slope * (t - mt))
 }
+
+/// Whether the x the primary view gives a and b (`x`, measured or extrapolated) names two
+/// blobs of a secondary view: the blobs lie more than `X_MARGIN_MM` apart in x, and the two
+/// labellings' total x misfits differ by more than that too. Spheres passing each other in x
+/// (a grazing impact whose normal leaves the primary's plane) are at nearly one x there, and
+/// x then names them by chance.
+pub(super) fn x_names_both(blobs: &[Blob], view: &View, x: [f64; 2]) -> bool {
+    let [p, q] = blobs else { return true };
+    let (xp, xq) = (world_x(view, p.centroid), world_x(view, q.centroid));
+    let straight = (xp - x[0]).abs() + (xq - x[1]).abs();
+    let swapped = (xq - x[0]).abs() + (xp - x[1]).abs();
+    (xp - xq).abs() > X_MARGIN_MM && (straight - swapped).abs() > X_MARGIN_MM
+}
+
+/// How far apart two labellings' x misfits must be for x to choose between them, mm (fifteen
+/// times the x error of either sphere).
+const X_MARGIN_MM: f64 = 0.3;
 
 /// Labels blobs of a secondary view by matching their world x to where the primary view
 /// measured a and/or b in the same frame (a sphere the primary view did not measure is "the
@@ -236,5 +252,38 @@ pub(super) fn assign<'a>(
             }
         }
         _ => [None, None],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Config;
+
+    fn blob(u: f64, v: f64) -> Blob {
+        Blob {
+            centroid: [u, v],
+            area_px: 140,
+            extent_px: [0, 0, 0, 0],
+            clipped: false,
+            merged: false,
+        }
+    }
+
+    /// x names two blobs only where the two labellings' x misfits differ by more than 0.3 mm:
+    /// two spheres one above the other at nearly one x (passing each other in x) are not named
+    /// by it, two a diameter apart are.
+    #[test]
+    fn x_names_two_blobs_only_where_they_lie_apart_in_x() {
+        let cfg = Config::default_config();
+        let views = crate::analysis::geometry::views(&cfg);
+        let mirror = &views[1];
+        let x = |u: f64| world_x(mirror, [u, 140.0]);
+        // Blobs 0.4 px (0.19 mm) apart in x; a and b's x from the primary 0.6 mm apart.
+        let passing = [blob(120.8, 137.0), blob(121.2, 151.0)];
+        assert!(!x_names_both(&passing, mirror, [x(121.6), x(120.3)]));
+        // A diameter apart.
+        let apart = [blob(114.0, 137.0), blob(128.0, 151.0)];
+        assert!(x_names_both(&apart, mirror, [x(114.2), x(127.9)]));
     }
 }

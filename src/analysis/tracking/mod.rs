@@ -23,7 +23,8 @@ mod walk;
 
 pub use ahead::FitMemo;
 use identity::{
-    assign, assign_by_continuity, assign_by_prediction, assign_by_x, extrapolate, ViewMemory,
+    assign, assign_by_continuity, assign_by_prediction, assign_by_x, extrapolate, x_names_both,
+    ViewMemory,
 };
 use measure::{fit_from_track, measure_blob, measure_touching, BlobFit};
 
@@ -338,6 +339,21 @@ impl Tracker {
                 [None, None]
             }
             [None, None] => assign(&blobs, view, &self.memory[vi], cx.t, self.max_gap_s),
+            // Two apart in this view where the primary's x cannot tell them (they pass each
+            // other in x, out of the primary's plane, and just lost continuity here touching):
+            // by the side each was on here, which this view's projection of the contact
+            // normal keeps. (x named them by chance, and the primary's labels, set by the
+            // side each was on in a view where they overlapped, then went unchecked: a and b
+            // swapped after the impact and no impact found.)
+            [Some(xa), Some(xb)]
+                if vi > 0
+                    && self.memory[vi].a_to_b.is_some()
+                    && blobs.len() == 2
+                    && !blobs.iter().any(|b| b.merged)
+                    && !x_names_both(&blobs, view, [xa, xb]) =>
+            {
+                assign(&blobs, view, &self.memory[vi], cx.t, self.max_gap_s)
+            }
             x => assign_by_x(&blobs, view, x, contact_mm),
         };
         // A held run is named by the first frame whose primary x names a sphere; until then
