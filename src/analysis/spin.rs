@@ -246,6 +246,11 @@ pub fn measure(
     // Clearly more: a quarter more links and two besides, so that the search's grid (a coarse
     // start, scored on the phase's first frames only) never displaces a spin followed well.
     let clearly_more = |n: f64| n > 1.25 * rest_links + 2.0;
+    // No spin could link clearly more: the search is not needed (nor made: it is a few
+    // thousand scorings).
+    if !clearly_more(spin_search::most_links(obs, frames, s)) {
+        return from_rest;
+    }
     let Some((start, n)) = spin_search::search(obs, frames, s, gate) else {
         return from_rest;
     };

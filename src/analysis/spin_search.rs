@@ -79,6 +79,15 @@ fn links_in(views: &Views, omega: V3, gate_mm: f64) -> f64 {
     n
 }
 
+/// The most `links` any spin could score over the first `SEARCH_FRAMES` frames of a phase:
+/// every marker of the sparser frame of each pair carried exactly onto one of the other's.
+pub fn most_links(obs: &[FrameObs], frames: &[usize], s: usize) -> f64 {
+    markers_by_view(obs, frames, s, SEARCH_FRAMES)
+        .iter()
+        .flat_map(|f| f.windows(2).map(|w| w[0].1.len().min(w[1].1.len())))
+        .sum::<usize>() as f64
+}
+
 /// `links_in` over the first `SEARCH_FRAMES` frames of a phase.
 pub fn links(obs: &[FrameObs], frames: &[usize], s: usize, omega: V3, gate_mm: f64) -> f64 {
     links_in(
