@@ -12,7 +12,7 @@
 //! sampled frames. With fewer than `MIN_FRAMES` frames there is no backdrop, only the polarity.
 
 use super::geometry::View;
-use super::image::GreyImage;
+use super::image::{GreyImage, SATURATED_GREY};
 use super::report::Source;
 use super::source::FrameSource;
 use super::AnalysisError;
@@ -160,6 +160,7 @@ impl Backdrop {
             .clone()
             .filter(|g| g.len() == img.width * img.height);
         img.inverted = self.inverted.clone();
+        img.saturated.clear();
         for vb in &self.views {
             let [x0, y0, x1, y1] = vb.rect;
             if x1 > img.width || y1 > img.height {
@@ -168,6 +169,14 @@ impl Backdrop {
             let rw = x1 - x0;
             for v in y0..y1 {
                 for u in x0..x1 {
+                    // Overexposed: marked before the level is moved (bright spheres only; in a
+                    // backlit view what saturates is the ground).
+                    if !vb.dark_spheres && img.data[v * w + u] >= SATURATED_GREY {
+                        if img.saturated.is_empty() {
+                            img.saturated.resize(img.width * img.height, false);
+                        }
+                        img.saturated[v * w + u] = true;
+                    }
                     let p = &mut img.data[v * w + u];
                     let ground = vb
                         .still

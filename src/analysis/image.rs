@@ -35,7 +35,16 @@ pub struct GreyImage {
     /// The rectangles [x0, y0, x1, y1) (exclusive ends) of views the normalisation inverted
     /// (backlit: the spheres darker than their ground); empty where none was.
     pub inverted: Arc<[[usize; 4]]>,
+    /// Per pixel (row-major), whether it was at the top of the camera's range before
+    /// normalisation (`SATURATED_GREY`) in a view whose spheres are brighter than their ground:
+    /// an overexposed sphere's level there is only known to be at least what it shows
+    /// (`backdrop`). Empty where nothing was marked.
+    pub saturated: Vec<bool>,
 }
+
+/// A raw level at or above this is the top of the camera's range (8-bit 255; a 16-bit
+/// camera's top 256 codes, as `GreyImage::load` scales them).
+pub const SATURATED_GREY: f32 = 255.0;
 
 impl GreyImage {
     pub fn new() -> GreyImage {
@@ -45,6 +54,7 @@ impl GreyImage {
             data: Vec::new(),
             ground: None,
             inverted: Arc::from([]),
+            saturated: Vec::new(),
         }
     }
 
@@ -54,6 +64,7 @@ impl GreyImage {
         self.height = height;
         self.ground = None;
         self.inverted = Arc::from([]);
+        self.saturated.clear();
         self.data.clear();
         if bytes_per_pixel == 1 {
             self.data.extend(raw.iter().map(|&b| b as f32));
@@ -68,6 +79,27 @@ impl GreyImage {
     #[inline]
     pub fn at(&self, u: usize, v: usize) -> f32 {
         self.data[v * self.width + u]
+    }
+
+    /// How far pixel (u, v), as a sphere shows it (`lit_at`), lies below `expected`: 0 where it
+    /// was saturated, since its level is only known to be at least what it shows (a dot on an
+    /// overexposed face is darker than the ceiling; the face around it is not).
+    #[inline]
+    pub fn below(&self, u: usize, v: usize, expected: f64) -> f64 {
+        if self.saturated_at(u, v) {
+            0.0
+        } else {
+            expected - self.lit_at(u, v) as f64
+        }
+    }
+
+    /// Whether pixel (u, v) was saturated (`saturated`).
+    #[inline]
+    pub fn saturated_at(&self, u: usize, v: usize) -> bool {
+        self.saturated
+            .get(v * self.width + u)
+            .copied()
+            .unwrap_or(false)
     }
 
     /// `ground` at pixel (u, v): what stands behind a sphere there, above the ground's level.

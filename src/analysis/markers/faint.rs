@@ -64,7 +64,7 @@ pub(super) fn faint_dots(
         for u in u0..=u1 {
             let (fu, fv) = (u as f64, v as f64);
             if (fu - cu).hypot(fv - cv) < outer && view.contains(fu, fv) {
-                dark[(v - v0) * w + (u - u0)] = expected(fu, fv) - img.lit_at(u, v) as f64;
+                dark[(v - v0) * w + (u - u0)] = img.below(u, v, expected(fu, fv));
             }
         }
     }
@@ -209,7 +209,7 @@ pub(super) fn local_plane(
             }
             let a = nalgebra::Vector3::new(1.0, fu - mu, fv - mv);
             ata += a * a.transpose();
-            atb += a * ((e - img.lit_at(u, v) as f64) / e);
+            atb += a * (img.below(u, v, e) / e);
             n += 1;
         }
     }

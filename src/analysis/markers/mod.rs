@@ -114,7 +114,7 @@ pub fn find(
                 continue;
             }
             let e = expected(u as f64, v as f64);
-            let d = e - img.lit_at(u, v) as f64;
+            let d = img.below(u, v, e);
             // A pixel is a candidate when it is a quarter darker than the shading and clear of
             // the noise; a dot is kept below when its darkness summed over its pixels is (see
             // `DOT_SIGNIFICANCE`). Why the sum: a faint dot (dark paint on a dark sphere) is
@@ -250,7 +250,7 @@ pub fn find(
                     if e <= 0.0 {
                         continue;
                     }
-                    let d = (e - img.lit_at(u, v) as f64) / e
+                    let d = img.below(u, v, e) / e
                         - (local[0] + local[1] * (fu - mu) + local[2] * (fv - mv));
                     cw += d;
                     cu_acc += d * fu;

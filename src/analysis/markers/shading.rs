@@ -45,7 +45,11 @@ impl Shading {
         for v in v0..=v1 {
             for u in u0..=u1 {
                 let (fu, fv) = (u as f64, v as f64);
-                if (fu - centre[0]).hypot(fv - centre[1]) < within && view.contains(fu, fv) {
+                // (An overexposed pixel says only that the shading is at least its level.)
+                if (fu - centre[0]).hypot(fv - centre[1]) < within
+                    && view.contains(fu, fv)
+                    && !img.saturated_at(u, v)
+                {
                     pix.push((
                         Self::basis_of(centre, radius, fu, fv),
                         img.lit_at(u, v) as f64,
