@@ -291,7 +291,8 @@ pub(crate) enum BenchWhat {
         /// How the rig looks: `default` (hw-sim's own look, on which the analysis was
         /// developed: an in-distribution figure), `varied` (each experiment draws a look family
         /// and its parameters from its seed), or one family: side_lit, specular, backlit,
-        /// cluttered, defocus, paint, mixed.
+        /// cluttered, defocus, paint, mixed; or `overexposed` (side-lit, every sphere's lit side at
+        /// the camera's ceiling), which `varied` does not draw.
         #[arg(long, default_value = "default")]
         looks: String,
         /// Where sessions are recorded while they are analysed (removed afterwards, unless

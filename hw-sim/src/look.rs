@@ -149,19 +149,27 @@ impl Look {
         "mixed",
     ];
 
-    /// A look drawn at random from `family` (one of `FAMILIES`, or "varied": a family drawn
-    /// first) with the lab's grey levels to go with it; the same seed gives the same look.
+    /// Families `draw` knows that "varied" does not draw from (so that the varied draws stay
+    /// as they were): `overexposed`, side-lit spheres of grey 215 with the direct view's gain
+    /// 1.45–1.7 and the mirror's 0.85–0.9 of that, so that every sphere's lit side sits at the
+    /// camera's ceiling (255) in both views.
+    pub const EXTRA_FAMILIES: [&'static str; 1] = ["overexposed"];
+
+    /// A look drawn at random from `family` (one of `FAMILIES` or `EXTRA_FAMILIES`, or
+    /// "varied": one of `FAMILIES` drawn first) with the lab's grey levels to go with it; the
+    /// same seed gives the same look.
     pub fn draw(family: &str, seed: u64) -> Result<(Look, Levels), String> {
         let mut rng = Rng::new(seed ^ 0x100C_5EED);
         let family = if family == "varied" {
             let k = (rng.uniform() * Self::FAMILIES.len() as f64) as usize;
             Self::FAMILIES[k.min(Self::FAMILIES.len() - 1)]
-        } else if Self::FAMILIES.contains(&family) {
+        } else if Self::FAMILIES.contains(&family) || Self::EXTRA_FAMILIES.contains(&family) {
             family
         } else {
             return Err(format!(
-                "sim.look_family: unknown family {family:?}, expected varied or one of {}",
-                Self::FAMILIES.join(", ")
+                "sim.look_family: unknown family {family:?}, expected varied or one of {}, {}",
+                Self::FAMILIES.join(", "),
+                Self::EXTRA_FAMILIES.join(", ")
             ));
         };
         let mut u = |lo: f64, hi: f64| lo + (hi - lo) * rng.uniform();
@@ -215,6 +223,13 @@ impl Look {
                 look.tube_grey = u(60.0, 150.0);
             }
             "defocus" => look.defocus_sigma_px = u(0.5, 1.2),
+            "overexposed" => {
+                // Drawn after everything else, so the side-lit draws above stay the same.
+                let gain = u(1.45, 1.7);
+                look.views[0].gain = gain;
+                look.views[1].gain *= gain;
+                levels.sphere_grey = 215.0;
+            }
             "paint" => {
                 look.marker_paint = MarkerPaint::Grey;
                 look.markers_one_hemisphere = false;
@@ -313,6 +328,27 @@ mod tests {
             seen.insert(look.family);
         }
         assert_eq!(seen.len(), Look::FAMILIES.len(), "families drawn: {seen:?}");
+    }
+
+    /// An overexposed look lights every sphere's brightest point past the camera's ceiling in
+    /// both views (albedo × gain above 255), and "varied" never draws it.
+    #[test]
+    fn overexposed_looks_saturate_both_views() {
+        for seed in 0..50 {
+            let (look, levels) = Look::draw("overexposed", seed).expect("a family");
+            look.validate().expect("a drawn look is valid");
+            assert_eq!(look.family, "overexposed");
+            for v in &look.views {
+                assert!(
+                    levels.sphere_grey * v.gain > 255.0 * 1.02,
+                    "seed {seed}: {v:?}"
+                );
+            }
+            assert_ne!(
+                Look::draw("varied", seed).expect("varied").0.family,
+                "overexposed"
+            );
+        }
     }
 
     #[test]
