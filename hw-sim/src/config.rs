@@ -100,8 +100,9 @@ pub struct LabConfig {
     pub lens_k1: f64,
     /// How the rig looks (light, surface, paint, clutter, focus); absent = the original render.
     pub look: Option<Look>,
-    /// Draw the look at random from this family and the seed (`Look::FAMILIES` or `Look::EXTRA_FAMILIES`, or "varied");
-    /// the drawn look also sets `background_grey`, `sphere_grey` and `marker_grey`.
+    /// Draw the look at random from this family and the seed (`Look::FAMILIES` or
+    /// `Look::EXTRA_FAMILIES`, or "varied"); the drawn look also sets `background_grey`,
+    /// `sphere_grey` and `marker_grey`.
     pub look_family: Option<String>,
 }
 
