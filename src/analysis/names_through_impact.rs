@@ -103,19 +103,6 @@ mod tests {
     use super::*;
     use crate::analysis::tracking::Measurement;
 
-    fn at(c: [f64; 2]) -> Measurement {
-        Measurement {
-            centre_px: c,
-            blob_centroid_px: c,
-            sigma_px: [0.02, 0.02],
-            diameter_px: 13.7,
-            edge_width_px: f64::NAN,
-            markers: Vec::new(),
-            hidden_in_part: None,
-            radius_stray_px: 0.0,
-        }
-    }
-
     /// One view of a grazing impact at frame 20 (t = 20 ms): a comes from the left and goes
     /// on to the right past b, which it hid in frames 18–22 (unmeasured); each sphere's image
     /// path is continuous, px per frame. With `swapped`, the frames after the impact carry
@@ -133,7 +120,8 @@ mod tests {
         (0..40)
             .map(|k| {
                 let hidden = (18..=22).contains(&k);
-                let mut spheres = [0, 1].map(|s| vec![(!hidden).then(|| at(path(s, k as f64)))]);
+                let mut spheres = [0, 1]
+                    .map(|s| vec![(!hidden).then(|| Measurement::test_at(path(s, k as f64)))]);
                 if swapped && k > 20 {
                     spheres.swap(0, 1);
                 }

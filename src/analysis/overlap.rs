@@ -165,14 +165,8 @@ mod tests {
         kinds: [Option<HiddenInPart>; 2],
     ) -> FrameObs {
         let m = |c: [f64; 2], h: Option<HiddenInPart>| Measurement {
-            centre_px: c,
-            blob_centroid_px: c,
-            sigma_px: [0.02, 0.02],
-            diameter_px: 13.7,
-            edge_width_px: f64::NAN,
-            markers: Vec::new(),
             hidden_in_part: h,
-            radius_stray_px: 0.0,
+            ..Measurement::test_at(c)
         };
         FrameObs {
             index: k,

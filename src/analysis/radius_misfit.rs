@@ -88,14 +88,9 @@ mod tests {
 
     fn frame(k: u64, diameter_px: f64) -> FrameObs {
         let m = Measurement {
-            centre_px: [10.0, 10.0],
-            blob_centroid_px: [10.0, 10.0],
             sigma_px: [0.03, 0.04],
             diameter_px,
-            edge_width_px: f64::NAN,
-            markers: Vec::new(),
-            hidden_in_part: None,
-            radius_stray_px: 0.0,
+            ..Measurement::test_at([10.0, 10.0])
         };
         FrameObs {
             index: k,

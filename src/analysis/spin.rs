@@ -242,29 +242,24 @@ pub fn measure(
     }
     let gate = 0.6;
     let omega_of = |m: &SpinMeasurement| m.fit.as_ref().map_or(V3::zeros(), |f| f.omega);
-    let rest_links = spin_search::links(obs, frames, s, omega_of(&from_rest), gate);
+    let seen = spin_search::PhaseMarkers::of(obs, frames, s);
+    let rest_links = seen.links(omega_of(&from_rest), gate);
     // Clearly more: a quarter more links and two besides, so that the search's grid (a coarse
     // start, scored on the phase's first frames only) never displaces a spin followed well.
     let clearly_more = |n: f64| n > 1.25 * rest_links + 2.0;
     // No spin could link clearly more: the search is not needed (nor made: it is a few
     // thousand scorings).
-    if !clearly_more(spin_search::most_links(obs, frames, s)) {
+    if !clearly_more(seen.most_links()) {
         return from_rest;
     }
-    let Some((start, n)) = spin_search::search(obs, frames, s, gate) else {
+    let Some((start, n)) = seen.search(gate) else {
         return from_rest;
     };
     if !clearly_more(n) {
         return from_rest;
     }
     let searched = follow(obs, frames, s, method, start, [gate, gate]);
-    if clearly_more(spin_search::links(
-        obs,
-        frames,
-        s,
-        omega_of(&searched),
-        gate,
-    )) {
+    if clearly_more(seen.links(omega_of(&searched), gate)) {
         SpinMeasurement {
             searched: true,
             ..searched

@@ -5,8 +5,8 @@
 //! marker 1.4 mm away a frame later, and the spin came out 2 ± 10 rad/s (20σ off).
 //!
 //! This module scores a spin by how many markers it carries onto a marker of the next frame
-//! (`links`), and searches a grid of rotations per frame for the spin that carries the most
-//! (`search`). The rotation per frame is searched up to `MAX_TURN_PER_FRAME_RAD`: beyond that
+//! (`PhaseMarkers::links`), and searches a grid of rotations per frame for the spin that carries
+//! the most (`PhaseMarkers::search`). The rotation per frame is searched up to `MAX_TURN_PER_FRAME_RAD`: beyond that
 //! the markers' pattern repeats too soon to be followed at all.
 
 use super::markers::MarkerObs;
@@ -26,124 +26,118 @@ const FINE_STEP_RAD: f64 = 0.04;
 /// chance, few enough to keep the grid cheap on long phases.
 const SEARCH_FRAMES: usize = 12;
 
-/// Per view, the markers of each frame (relative to the centre, mm) with the frame's time.
-type Views = Vec<Vec<(f64, Vec<V3>)>>;
-
-fn markers_by_view(obs: &[FrameObs], frames: &[usize], s: usize, limit: usize) -> Views {
-    let views = frames
-        .first()
-        .map(|&k| obs[k].spheres[s].len())
-        .unwrap_or(0);
-    (0..views)
-        .map(|vi| {
-            frames
-                .iter()
-                .take(limit)
-                .filter_map(|&k| {
-                    let m = obs[k].spheres[s].get(vi)?.as_ref()?;
-                    let pts: Vec<V3> = m.markers.iter().map(|d: &MarkerObs| d.rel_mm).collect();
-                    (!pts.is_empty()).then_some((obs[k].time_s, pts))
-                })
-                .collect()
-        })
-        .collect()
+/// A phase's markers as the search sees them: per view, each frame's markers (relative to the
+/// centre, mm) with the frame's time, over the phase's first `SEARCH_FRAMES` frames. Gathered
+/// once per phase and scored many times.
+pub struct PhaseMarkers {
+    views: Vec<Vec<(f64, Vec<V3>)>>,
 }
 
-/// How many markers spin `omega` carries from each frame onto a distinct marker of the next
-/// frame the same view saw the sphere in, within `gate_mm`, over the views: each such link
-/// counts 1 − (d/gate)², d how far it lands from that marker, so that of two spins that link
-/// the same markers the one that carries them closer scores more.
-fn links_in(views: &Views, omega: V3, gate_mm: f64) -> f64 {
-    let mut n = 0.0;
-    for frames in views {
-        for w in frames.windows(2) {
-            let ((t0, p), (t1, q)) = (&w[0], &w[1]);
-            let r = Rotation3::from_scaled_axis(omega * (t1 - t0));
-            let mut used = vec![false; q.len()];
-            for a in p {
-                let ra = r * a;
-                let nearest = q
+impl PhaseMarkers {
+    /// Sphere `s`'s markers over the first `SEARCH_FRAMES` of `frames`.
+    pub fn of(obs: &[FrameObs], frames: &[usize], s: usize) -> PhaseMarkers {
+        let views = frames
+            .first()
+            .map(|&k| obs[k].spheres[s].len())
+            .unwrap_or(0);
+        let views = (0..views)
+            .map(|vi| {
+                frames
                     .iter()
-                    .enumerate()
-                    .map(|(j, b)| (j, (b - ra).norm()))
-                    .min_by(|x, y| x.1.total_cmp(&y.1));
-                if let Some((j, d)) = nearest {
-                    if d < gate_mm && !used[j] {
-                        used[j] = true;
-                        n += 1.0 - (d / gate_mm).powi(2);
+                    .take(SEARCH_FRAMES)
+                    .filter_map(|&k| {
+                        let m = obs[k].spheres[s].get(vi)?.as_ref()?;
+                        let pts: Vec<V3> = m.markers.iter().map(|d: &MarkerObs| d.rel_mm).collect();
+                        (!pts.is_empty()).then_some((obs[k].time_s, pts))
+                    })
+                    .collect()
+            })
+            .collect();
+        PhaseMarkers { views }
+    }
+
+    /// How many markers spin `omega` carries from each frame onto a distinct marker of the
+    /// next frame the same view saw the sphere in, within `gate_mm`, over the views: each such
+    /// link counts 1 − (d/gate)², d how far it lands from that marker, so that of two spins
+    /// that link the same markers the one that carries them closer scores more.
+    pub fn links(&self, omega: V3, gate_mm: f64) -> f64 {
+        let mut n = 0.0;
+        for frames in &self.views {
+            for w in frames.windows(2) {
+                let ((t0, p), (t1, q)) = (&w[0], &w[1]);
+                let r = Rotation3::from_scaled_axis(omega * (t1 - t0));
+                let mut used = vec![false; q.len()];
+                for a in p {
+                    let ra = r * a;
+                    let nearest = q
+                        .iter()
+                        .enumerate()
+                        .map(|(j, b)| (j, (b - ra).norm()))
+                        .min_by(|x, y| x.1.total_cmp(&y.1));
+                    if let Some((j, d)) = nearest {
+                        if d < gate_mm && !used[j] {
+                            used[j] = true;
+                            n += 1.0 - (d / gate_mm).powi(2);
+                        }
                     }
                 }
             }
         }
+        n
     }
-    n
-}
 
-/// The most `links` any spin could score over the first `SEARCH_FRAMES` frames of a phase:
-/// every marker of the sparser frame of each pair carried exactly onto one of the other's.
-pub fn most_links(obs: &[FrameObs], frames: &[usize], s: usize) -> f64 {
-    markers_by_view(obs, frames, s, SEARCH_FRAMES)
-        .iter()
-        .flat_map(|f| f.windows(2).map(|w| w[0].1.len().min(w[1].1.len())))
-        .sum::<usize>() as f64
-}
+    /// The most `links` any spin could score: every marker of the sparser frame of each pair
+    /// carried exactly onto one of the other's.
+    pub fn most_links(&self) -> f64 {
+        self.views
+            .iter()
+            .flat_map(|f| f.windows(2).map(|w| w[0].1.len().min(w[1].1.len())))
+            .sum::<usize>() as f64
+    }
 
-/// `links_in` over the first `SEARCH_FRAMES` frames of a phase.
-pub fn links(obs: &[FrameObs], frames: &[usize], s: usize, omega: V3, gate_mm: f64) -> f64 {
-    links_in(
-        &markers_by_view(obs, frames, s, SEARCH_FRAMES),
-        omega,
-        gate_mm,
-    )
-}
-
-/// The spin on a grid of rotations per frame that carries the most markers onto the next
-/// frame's (`links`), with its score; None where the phase has fewer than two frames with
-/// markers in any view. Ties go to the smaller rotation.
-pub fn search(obs: &[FrameObs], frames: &[usize], s: usize, gate_mm: f64) -> Option<(V3, f64)> {
-    let views = markers_by_view(obs, frames, s, SEARCH_FRAMES);
-    // The typical frame interval: the smallest gap between frames any view saw in turn.
-    let dt = views
-        .iter()
-        .flat_map(|f| f.windows(2).map(|w| w[1].0 - w[0].0))
-        .filter(|d| *d > 0.0)
-        .min_by(f64::total_cmp)?;
-    // Coarse, then fine round the coarse grid's best.
-    let mut best: Option<(V3, f64, f64)> = None;
-    let consider = |turn: V3, best: &mut Option<(V3, f64, f64)>| {
-        let size = turn.norm();
-        if size > MAX_TURN_PER_FRAME_RAD + 1e-9 {
-            return;
-        }
-        let n = links_in(&views, turn / dt, gate_mm);
-        let better = match best {
-            None => true,
-            Some((_, bn, bs)) => n > *bn || (n == *bn && size < *bs),
+    /// The spin on a grid of rotations per frame that carries the most markers onto the next
+    /// frame's (`links`), with its score; None where no view saw markers in two frames. Ties
+    /// go to the smaller rotation.
+    pub fn search(&self, gate_mm: f64) -> Option<(V3, f64)> {
+        // The typical frame interval: the smallest gap between frames any view saw in turn.
+        let dt = self
+            .views
+            .iter()
+            .flat_map(|f| f.windows(2).map(|w| w[1].0 - w[0].0))
+            .filter(|d| *d > 0.0)
+            .min_by(f64::total_cmp)?;
+        // Coarse, then fine round the coarse grid's best.
+        let mut best: Option<(V3, f64, f64)> = None;
+        let consider = |turn: V3, best: &mut Option<(V3, f64, f64)>| {
+            let size = turn.norm();
+            if size > MAX_TURN_PER_FRAME_RAD + 1e-9 {
+                return;
+            }
+            let n = self.links(turn / dt, gate_mm);
+            let better = match best {
+                None => true,
+                Some((_, bn, bs)) => n > *bn || (n == *bn && size < *bs),
+            };
+            if better {
+                *best = Some((turn, n, size));
+            }
         };
-        if better {
-            *best = Some((turn, n, size));
-        }
-    };
-    let steps = (MAX_TURN_PER_FRAME_RAD / COARSE_STEP_RAD).round() as i32;
-    for i in -steps..=steps {
-        for j in -steps..=steps {
-            for k in -steps..=steps {
-                let turn = V3::new(i as f64, j as f64, k as f64) * COARSE_STEP_RAD;
-                consider(turn, &mut best);
+        let grid = |centre: V3, step: f64, steps: i32, best: &mut Option<(V3, f64, f64)>| {
+            for i in -steps..=steps {
+                for j in -steps..=steps {
+                    for k in -steps..=steps {
+                        consider(centre + V3::new(i as f64, j as f64, k as f64) * step, best);
+                    }
+                }
             }
-        }
+        };
+        let coarse = (MAX_TURN_PER_FRAME_RAD / COARSE_STEP_RAD).round() as i32;
+        grid(V3::zeros(), COARSE_STEP_RAD, coarse, &mut best);
+        let centre = best.as_ref()?.0;
+        let fine = (COARSE_STEP_RAD / FINE_STEP_RAD).round() as i32;
+        grid(centre, FINE_STEP_RAD, fine, &mut best);
+        best.map(|(turn, n, _)| (turn / dt, n))
     }
-    let centre = best.as_ref()?.0;
-    let steps = (COARSE_STEP_RAD / FINE_STEP_RAD).round() as i32;
-    for i in -steps..=steps {
-        for j in -steps..=steps {
-            for k in -steps..=steps {
-                let turn = centre + V3::new(i as f64, j as f64, k as f64) * FINE_STEP_RAD;
-                consider(turn, &mut best);
-            }
-        }
-    }
-    best.map(|(turn, n, _)| (turn / dt, n))
 }
 
 #[cfg(test)]
@@ -191,14 +185,8 @@ mod tests {
                     })
                     .collect();
                 let m = Measurement {
-                    centre_px: [50.0, 50.0],
-                    blob_centroid_px: [50.0, 50.0],
-                    sigma_px: [0.02, 0.02],
-                    diameter_px: 13.7,
-                    edge_width_px: f64::NAN,
                     markers,
-                    hidden_in_part: None,
-                    radius_stray_px: 0.0,
+                    ..Measurement::test_at([50.0, 50.0])
                 };
                 FrameObs {
                     index: k as u64,
@@ -229,8 +217,9 @@ mod tests {
             assert!(z.abs() < 5.0, "axis {i}: {z:.1}σ");
         }
         // From rest alone the first pass links the wrong dots: what the search is for.
-        let rest = links(&obs, &all, 0, V3::zeros(), 0.6);
-        let found = links(&obs, &all, 0, fit.omega, 0.6);
+        let seen = PhaseMarkers::of(&obs, &all, 0);
+        let rest = seen.links(V3::zeros(), 0.6);
+        let found = seen.links(fit.omega, 0.6);
         assert!(found > 1.25 * rest + 2.0, "{found} vs {rest}");
     }
 

@@ -48,6 +48,24 @@ pub struct Measurement {
     pub radius_stray_px: f64,
 }
 
+#[cfg(test)]
+impl Measurement {
+    /// For tests: a whole disc 13.7 px across (hw-sim's default scale) at `centre_px`, σ
+    /// 0.02 px, no markers.
+    pub(crate) fn test_at(centre_px: [f64; 2]) -> Measurement {
+        Measurement {
+            centre_px,
+            blob_centroid_px: centre_px,
+            sigma_px: [0.02, 0.02],
+            diameter_px: 13.7,
+            edge_width_px: f64::NAN,
+            markers: Vec::new(),
+            hidden_in_part: None,
+            radius_stray_px: 0.0,
+        }
+    }
+}
+
 /// How a disc the other sphere partly hides was measured (`Measurement::hidden_in_part`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HiddenInPart {
