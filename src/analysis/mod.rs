@@ -53,7 +53,7 @@ use calibration::calibrate_mirror;
 use phases::{fit_all, flight_phases, phases_missing_axis, relift_on_trajectories};
 use second_pass::rim_dots;
 pub use source::{FileSource, FrameSource, SessionSource};
-use uncertainty::{combined_uncertainties, spin_estimate};
+use uncertainty::{beta_where_defined, combined_uncertainties, spin_estimate};
 
 #[derive(Debug, thiserror::Error)]
 pub enum AnalysisError {
@@ -611,6 +611,7 @@ fn observations_once(
         ));
     }
 
+    let beta = beta_where_defined(d.beta.zip(sd.beta), d.psi1.zip(sd.psi1), &mut warnings);
     let est3 = |v: V3, s: V3| Estimate {
         value: [v.x, v.y, v.z],
         uncertainty: [s.x, s.y, s.z],
@@ -752,10 +753,7 @@ fn observations_once(
             value: d.e,
             uncertainty: sd.e,
         }),
-        beta: d
-            .beta
-            .zip(sd.beta)
-            .map(|(value, uncertainty)| Estimate { value, uncertainty }),
+        beta,
         psi1: d
             .psi1
             .zip(sd.psi1)

@@ -1,13 +1,14 @@
 //! Uncertainty combination: the Jacobian of the fit covariances, the jackknife over frames,
 //! and each frame's influence on the four spin fits together (both spheres are measured on one
-//! frame, so their spins move together).
+//! frame, so their spins move together); and where a σ so propagated does not hold (β where
+//! ψ1 is near zero).
 
 use super::geometry::View;
 use super::kinematics::{
     self, derive, uncertainties, Bodies, Fits, ImpactError, SideFit, Spins, V3,
 };
 use super::phases::{keep_common_axes, series};
-use super::report::{Estimate, Vector};
+use super::report::{Estimate, Scalar, Vector};
 use super::rotation::SpinFit;
 use super::tracking::FrameObs;
 
@@ -152,5 +153,58 @@ pub(super) fn spin_estimate(f: &SpinFit) -> Vector {
     Estimate {
         value: [f.omega.x, f.omega.y, f.omega.z],
         uncertainty: [s(0), s(1), s(2)],
+    }
+}
+
+/// How many of its σ the tangential speed before the impact (ψ1) must lie from zero for β to
+/// be reported (`beta_where_defined`).
+const BETA_MIN_PSI1_SIGMAS: f64 = 3.0;
+
+/// β with its σ, where it is defined: β = −ψ2/ψ1 (physics.md §1) is a ratio, and its σ,
+/// propagated through the derivative at the estimate, holds only while ψ1 is well clear of
+/// zero. Where ψ1 lies within `BETA_MIN_PSI1_SIGMAS` of its σ of zero, one spin error moves ψ1
+/// and ψ2 together and β anywhere (a near head-on impact of the bench, seed 1111: ψ1 0.29 ±
+/// 0.16 for 0.06, β −0.82 ± 0.15 for +0.30, 7σ): then β is null, with a warning. ψ1 and ψ2 are
+/// reported as measured either way; a campaign's fit uses them, not β.
+pub(super) fn beta_where_defined(
+    beta: Option<(f64, f64)>,
+    psi1: Option<(f64, f64)>,
+    warnings: &mut Vec<String>,
+) -> Option<Scalar> {
+    let (value, uncertainty) = beta?;
+    if let Some((p1, s1)) = psi1 {
+        if p1.abs() < BETA_MIN_PSI1_SIGMAS * s1 {
+            warnings.push(format!(
+                "β is not reported: the tangential speed at contact before the impact, ψ1 = {p1:.3} ± {s1:.3}, is within {BETA_MIN_PSI1_SIGMAS}σ of zero, and β is the ratio of the tangential speeds after and before (ψ1 and ψ2 are reported)"
+            ));
+            return None;
+        }
+    }
+    Some(Estimate { value, uncertainty })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::beta_where_defined;
+
+    /// β is reported with ψ1 clear of zero, and left null with a warning that gives ψ1 where
+    /// ψ1 lies within 3σ of zero (the ratio's propagated σ does not hold there).
+    #[test]
+    fn beta_is_null_where_psi1_is_not_clear_of_zero() {
+        let mut warnings = Vec::new();
+        let kept = beta_where_defined(Some((0.45, 0.02)), Some((0.60, 0.10)), &mut warnings);
+        assert_eq!(kept.map(|b| (b.value, b.uncertainty)), Some((0.45, 0.02)));
+        assert!(warnings.is_empty());
+        let dropped = beta_where_defined(Some((-0.82, 0.15)), Some((0.285, 0.16)), &mut warnings);
+        assert!(dropped.is_none());
+        assert_eq!(warnings.len(), 1);
+        assert!(
+            warnings[0].contains("ψ1 = 0.285 ± 0.160"),
+            "{}",
+            warnings[0]
+        );
+        // No β, nothing to say.
+        assert!(beta_where_defined(None, Some((0.0, 1.0)), &mut warnings).is_none());
+        assert_eq!(warnings.len(), 1);
     }
 }

@@ -769,13 +769,15 @@ fn a_fit_started_far_from_a_blurred_disc_is_tried_again_from_where_it_went() {
     assert!(worst < 0.2, "worst centre {worst:.3} px from the truth");
 }
 
-/// Blurred dots the fit cannot find: a sphere defocused by 1.1 px and lit from 30° to one side,
-/// eight dots painted at a fifth of the shading (multiplicative) and blurred with it, noise
-/// σ = 2, no masks, 40 phases. Each dot is 5–15σ darker over a dozen pixels, hardly a pixel of
-/// it 4σ off a model that bends to meet it, so the rejection leaves it in; Cauchy's loss in
-/// every round weighs it down. Measured: without dots 0.028 px per axis; with them 0.077 px,
-/// and 0.087 px with least squares after the first round (as before session 29). The dots'
-/// share, 0.07 px in quadrature, is most of what is left: open (docs/accuracy.md).
+/// Blurred dots no marker search finds: a sphere defocused by 1.1 px and lit from 30° to one
+/// side, eight dots painted at a fifth of the shading (multiplicative) and blurred with it,
+/// noise σ = 2, no masks, 40 phases. Each dot is 5–15σ darker over a dozen pixels, hardly a
+/// pixel of it 4σ off a model that bends to meet it, so the rejection of single pixels leaves
+/// it in; Cauchy's loss in every round weighs it down, and on a blurred disc the patches darker
+/// than the model are left out too (`profile::dark_patches`). Measured: without dots 0.028 px
+/// per axis; with them 0.077 px before the patches were looked for, 0.059 px since (0.087 px
+/// with least squares after the first round, as before session 29). What is left, 0.05 px in
+/// quadrature, is open (docs/accuracy.md).
 #[test]
 fn blurred_dots_left_in_the_ring_do_not_pull_the_centre() {
     let cfg = hw_sim::LabConfig {
@@ -791,5 +793,5 @@ fn blurred_dots_left_in_the_ring_do_not_pull_the_centre() {
     assert!(errs.len() >= 30, "only {} of 40 fits settled", errs.len());
     let plain: Vec<[f64; 2]> = errs.iter().map(|e| e.0).collect();
     let p = rms(&plain);
-    assert!(p < 0.082, "blurred dots left in: {p:.4} px per axis");
+    assert!(p < 0.066, "blurred dots left in: {p:.4} px per axis");
 }

@@ -2,8 +2,10 @@
 //! (further inside where the edge is blurred), integrated over each pixel's area where the edge
 //! crosses it; one disc, two discs whose rings meet fitted together, or the front disc hiding
 //! the back one. `ring` gathers the pixels, `model` holds the disc's shading averaged over a
-//! box, and `fit` the Levenberg–Marquardt fit of them.
+//! box, `fit` the Levenberg–Marquardt fit of them, and `dark_patches` the dots a blur has
+//! spread, which that fit leaves out.
 
+mod dark_patches;
 mod fit;
 mod model;
 mod ring;
@@ -149,8 +151,13 @@ const INNER_BAND_PER_EDGE_WIDTH: f64 = 2.0;
 /// than a quarter of a pixel (a sharp render's fit is left exactly as it was).
 fn blurred_inner_band(widths: &[f64]) -> Option<f64> {
     let s = widths.iter().copied().fold(0.0, f64::max);
-    let extra = INNER_BAND_PER_EDGE_WIDTH * s;
-    (extra >= 0.25).then_some(PROFILE_BAND_PX + extra)
+    edge_is_blurred(s).then_some(PROFILE_BAND_PX + INNER_BAND_PER_EDGE_WIDTH * s)
+}
+
+/// Whether an edge of width `s` px is blurred enough that the ring reaches further inside
+/// (`blurred_inner_band`).
+fn edge_is_blurred(s: f64) -> bool {
+    INNER_BAND_PER_EDGE_WIDTH * s >= 0.25
 }
 
 /// Two discs side by side whose rings come close, fitted together: the model is the background
