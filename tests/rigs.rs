@@ -448,8 +448,9 @@ fn a_lens_in_the_config_takes_out_the_bias_it_leaves_and_calibrate_finds_it() {
         err(&without)
     );
     // calibrate, given only the shorthand (no lens), fits a lens from the flights: where it
-    // keeps one (it did on nine recordings of nine, k1 −0.013 to −0.029 at 4σ or more), a barrel
-    // lens in both views; its maps give e within 0.015 and 5σ (0.0065 at most on those nine).
+    // keeps one (it did on eight recordings of eight in session 36, k1 −0.022 to −0.044 with σ
+    // 0.0025, whole discs only; −0.001 to −0.034 before), a barrel lens in both views; its maps
+    // give e within 0.015 and 5σ (0.0038 at most on those eight, 0.0106 before).
     let out = common::impactcam(
         t.path(),
         &["calibrate", session.to_str().unwrap(), "--out", "cal.toml"],
@@ -462,7 +463,7 @@ fn a_lens_in_the_config_takes_out_the_bias_it_leaves_and_calibrate_finds_it() {
         .map(|v| v.parse().unwrap())
         .collect();
     assert!(
-        k1.is_empty() || (k1.len() == 2 && k1[0] == k1[1] && (-0.045..0.0).contains(&k1[0])),
+        k1.is_empty() || (k1.len() == 2 && k1[0] == k1[1] && (-0.06..0.0).contains(&k1[0])),
         "none, or a barrel lens in both views: {k1:?}\n{cal}"
     );
     let calibrated = analyze_with(t.path(), &session, "cal.toml", "cal");
@@ -527,10 +528,15 @@ fn a_lens_in_the_config_takes_out_the_bias_it_leaves_and_calibrate_finds_it() {
     );
     let calibrated = analyze_with(t.path(), &session, "cal_grid.toml", "cal_grid");
     check(&calibrated, &truth, "e", 0.02, "lens from the grid");
-    // The grid's scale is checked against the flights': told a pitch 10 % too large, calibrate
-    // still writes the maps but says that the two disagree. (With the right pitch they
-    // disagree too on most recordings: the flights fitted with the grid's k1 held give a
-    // scale 1–6 % low, a cause not yet found; docs/accuracy.md.)
+    // The grid's scale is checked against the flights': with the right pitch the two agree
+    // (until session 36 they disagreed on 7 of 8 recordings, the flights' scale 3–7 % low:
+    // the discs cut by the view's border, fitted at a radius the lens makes wrong there, had
+    // pulled the flights; now left out, the eight within 1.9σ); told a pitch 10 % too large,
+    // calibrate still writes the maps but says that the two disagree.
+    assert!(
+        cal.contains("the grid's scale") && !cal.contains("DISAGREE"),
+        "the grid's scale and the flights' should agree:\n{cal}"
+    );
     let out = calibrate_grid(&["--grid", "grid.tiff", "--grid-pitch-mm", "4.4"]);
     assert!(out.status.success(), "{}", common::stderr(&out));
     let text = String::from_utf8_lossy(&out.stdout);

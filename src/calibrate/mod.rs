@@ -497,6 +497,7 @@ pub fn calibrate(
             mi.map(|i| &views[i]),
             lens,
             held,
+            views,
         )
         .map_err(&data)
     };

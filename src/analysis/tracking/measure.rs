@@ -48,6 +48,13 @@ pub(super) fn fit_blob(
     if !b.clipped {
         return BlobFit::Fitted(f, hidden);
     }
+    // The radius the lens gives a disc there, not the view's nominal one: at the top of a
+    // 240 × 192 frame through k1 = −0.03 it is 0.08 px smaller, and held at the nominal the
+    // centre moved across the cut by as much (calibrate's flights, docs/accuracy.md session 36).
+    // (Under perspective the radius changes with the sphere's depth too: not followed here.)
+    let radius_px = view
+        .lens
+        .map_or(radius_px, |lens| radius_px * lens.radius_factor(f.centre));
     match stages::timed(Stage::Circles, || {
         profile_fit_known_radius(img, view, &f, background, other, dots, radius_px)
     }) {
