@@ -5,7 +5,7 @@
 use super::super::CircleFit;
 use super::dark_patches::dark_patches;
 use super::dist;
-use super::model::{mean_lit, softplus};
+use super::model::{blurred_rise, mean_lit, softplus};
 use super::ring::{RingPixel, STRIP_OFFSETS};
 
 /// Parameters per disc in `fit_grey_levels`: centre (2), radius, edge width, and the shading's
@@ -31,6 +31,8 @@ pub(super) enum Layering {
 }
 
 /// Levenberg–Marquardt fit of `N` discs' grey-level model (see `profile_fit`) to `pixels`,
+/// with `convolved` (a lone disc only) the shading's rise under the limb blurred with the edge
+/// (`model::blurred_rise`) rather than taken at the blurred depth,
 /// P = 1 + 10·N parameters: the background, then per disc [cx, cy, R, s, a, b, c₁, c₂, a₁, a₂]
 /// (`DISC_PARAMS`); `layering`
 /// says whether two discs' terms add or one hides the other. Each disc must settle within
@@ -43,6 +45,7 @@ pub(super) fn fit_grey_levels<const P: usize, const N: usize>(
     layering: Layering,
     radius_px: Option<f64>,
     max_move_px: f64,
+    convolved: bool,
 ) -> Option<([CircleFit; N], [f64; N])>
 where
     nalgebra::Const<P>: nalgebra::DimMin<nalgebra::Const<P>, Output = nalgebra::Const<P>>,
@@ -142,6 +145,39 @@ where
             let di_dcy = b * (-dg_dd * sn + lit.d_lamp * dlamp_dcy)
                 + (p[o + 8] * cs * sn - p[o + 9] * cs * cs) * inv_d;
             let di_dr = b * dg_dr;
+            // The image of a blurred disc is the blur of the step times the shading: the
+            // shading at the limb times the blurred step, plus the blurred rise inside it
+            // (`blurred_rise`). The product below (the step times the shading's mean at the
+            // blurred depth) put a blurred disc lit a few degrees off the axis 0.03–0.1 px
+            // away from the lamp; this, within 0.01 (docs/accuracy.md, session 36).
+            if convolved && N == 1 && !hiding {
+                let lit_limb = lamp > 0.0;
+                let g1 = if lit_limb { lamp } else { 0.0 };
+                let inner0 = p[o + 4] + b * g1 + p[o + 8] * cs + p[o + 9] * sn;
+                let shown0 = inner0 - hidden;
+                let rise = blurred_rise(x, h, s, r, lamp);
+                let harm_dcx = (-p[o + 8] * sn * sn + p[o + 9] * cs * sn) * inv_d;
+                let harm_dcy = (p[o + 8] * cs * sn - p[o + 9] * cs * cs) * inv_d;
+                let limb = if lit_limb { b } else { 0.0 };
+                let j = &mut d_term[k];
+                j[o] = dl_dx * cs * shown0
+                    + l * (limb * dlamp_dcx + harm_dcx)
+                    + b * (rise.d_x * cs + rise.d_lamp * dlamp_dcx);
+                j[o + 1] = dl_dx * sn * shown0
+                    + l * (limb * dlamp_dcy + harm_dcy)
+                    + b * (rise.d_x * sn + rise.d_lamp * dlamp_dcy);
+                j[o + 2] = dl_dx * shown0 + b * (rise.d_x + rise.d_r);
+                j[o + 3] = dl_ds * shown0 + b * rise.d_s;
+                j[o + 4] = l;
+                j[o + 5] = l * g1 + rise.rise;
+                j[o + 6] = (l * limb + b * rise.d_lamp) * cs;
+                j[o + 7] = (l * limb + b * rise.d_lamp) * sn;
+                j[o + 8] = l * cs;
+                j[o + 9] = l * sn;
+                term[k] = l * shown0 + b * rise.rise;
+                step[k] = l;
+                continue;
+            }
             let j = &mut d_term[k];
             j[o] = dl_dx * cs * shown + l * di_dcx;
             j[o + 1] = dl_dx * sn * shown + l * di_dcy;

@@ -85,6 +85,11 @@ fn fit_one(
             Layering::Apart,
             radius_px,
             max_move_px,
+            // The refit on the ring reaching past a blurred edge models the shading's rise
+            // under it as blurred (`model::blurred_rise`); the first, on the usual band, as
+            // the step times the shading, which a sharp edge makes exact and which only has
+            // to find how blurred the edge is.
+            inner_px > PROFILE_BAND_PX,
         )
     };
     // A fit that settled more than a pixel from its start may still have found the disc: an
@@ -182,7 +187,15 @@ pub fn profile_fit_pair(
     }
     let fit = |discs: [&CircleFit; 2], inner_px: f64| {
         let pixels = ring_pixels(img, view, &discs, dots, |_, _| false, 20, inner_px)?;
-        fit_grey_levels::<21, 2>(&pixels, discs, background, Layering::Apart, None, 1.0)
+        fit_grey_levels::<21, 2>(
+            &pixels,
+            discs,
+            background,
+            Layering::Apart,
+            None,
+            1.0,
+            false,
+        )
     };
     let (first, widths) = fit(starts, PROFILE_BAND_PX)?;
     let Some(inner_px) = blurred_inner_band(&widths) else {
@@ -241,6 +254,7 @@ pub fn profile_fit_behind(
         Layering::InFront(front),
         None,
         1.0,
+        false,
     )
     .map(|(fit, _)| fit)
 }

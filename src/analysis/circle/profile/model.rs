@@ -90,6 +90,127 @@ pub(super) fn mean_lit(rho0: f64, rho1: f64, lamp: f64) -> LitMean {
     }
 }
 
+/// The shading's rise inside a blurred edge and its derivatives (`blurred_rise`).
+pub(super) struct BlurredRise {
+    pub(super) rise: f64,
+    pub(super) d_x: f64,
+    pub(super) d_s: f64,
+    pub(super) d_r: f64,
+    pub(super) d_lamp: f64,
+}
+
+/// Gauss–Legendre nodes and weights on [−1, 1], twelve of them.
+const GL12: [(f64, f64); 12] = [
+    (-0.981_560_634_246_719_2, 0.047_175_336_386_511_83),
+    (-0.904_117_256_370_474_8, 0.106_939_325_995_318_18),
+    (-0.769_902_674_194_304_7, 0.160_078_328_543_346_33),
+    (-0.587_317_954_286_617_5, 0.203_167_426_723_065_84),
+    (-0.367_831_498_998_180_2, 0.233_492_536_538_354_78),
+    (-0.125_233_408_511_468_9, 0.249_147_045_813_402_88),
+    (0.125_233_408_511_468_9, 0.249_147_045_813_402_88),
+    (0.367_831_498_998_180_2, 0.233_492_536_538_354_78),
+    (0.587_317_954_286_617_5, 0.203_167_426_723_065_84),
+    (0.769_902_674_194_304_7, 0.160_078_328_543_346_33),
+    (0.904_117_256_370_474_8, 0.106_939_325_995_318_18),
+    (0.981_560_634_246_719_2, 0.047_175_336_386_511_83),
+];
+
+/// The blur of a lit sphere's shading rise under its limb, averaged over a box: ∫ K(x − t)
+/// ΔG(t) dt over the depth t ≥ 0 below the limb, where ΔG(t) = G(ρ) − G(1) with
+/// G(ρ) = max(0, λ·ρ + √(1 − ρ²)) and ρ = 1 − t/R, and K is the logistic step's density (width
+/// s) averaged over a box of width h across the edge: the same kernel whose integral is the
+/// step `softplus` averages. Why: the step times the shading at the blurred depth (`mean_lit`)
+/// is the blur of their product only where the shading is flat; a lit limb's shading rises as
+/// √t, and a lamp a few degrees off the axis put blurred discs' centres 0.03–0.1 px away from
+/// it (docs/accuracy.md, session 36). By quadrature in u = √t (which takes out the √ at the
+/// limb) over the kernel's reach, x ± (h/2 + 6s).
+pub(super) fn blurred_rise(x: f64, h: f64, s: f64, r: f64, lamp: f64) -> BlurredRise {
+    let mut out = BlurredRise {
+        rise: 0.0,
+        d_x: 0.0,
+        d_s: 0.0,
+        d_r: 0.0,
+        d_lamp: 0.0,
+    };
+    let reach = 0.5 * h + 6.0 * s;
+    let t_hi = x + reach;
+    if t_hi <= 0.0 {
+        return out;
+    }
+    let (u_lo, u_hi) = ((x - reach).max(0.0).sqrt(), t_hi.sqrt());
+    let g_limb = lamp.max(0.0);
+    let lit_limb = if lamp > 0.0 { 1.0 } else { 0.0 };
+    let inv_h = 1.0 / h;
+    let inv_s = 1.0 / s;
+    // The logistic L(z) = 1/(1 + e^{−z/s}), its density L(1 − L)/s and ∂L/∂s = −z·L(1 − L)/s².
+    let logistic = |z: f64| {
+        let e = (-z.abs() * inv_s).exp();
+        let l = if z >= 0.0 {
+            1.0 / (1.0 + e)
+        } else {
+            e / (1.0 + e)
+        };
+        let k = l * (1.0 - l) * inv_s;
+        (l, k, -z * k * inv_s)
+    };
+    // ΔG at depth t, ∂ΔG/∂λ and ∂G/∂ρ.
+    let rise_at = |t: f64| {
+        let rho = (1.0 - t / r).max(-1.0);
+        let nz = (1.0 - rho * rho).max(0.0).sqrt();
+        let g = lamp * rho + nz;
+        if g > 0.0 {
+            (g - g_limb, rho, lamp - rho / nz.max(1e-12))
+        } else {
+            (-g_limb, 0.0, 0.0)
+        }
+    };
+    // The kernel at x − t: its value, ∂/∂x and ∂/∂s.
+    let kernel = |t: f64| {
+        let z = x - t;
+        let (l1, k1, s1) = logistic(z + 0.5 * h);
+        let (l0, k0, s0) = logistic(z - 0.5 * h);
+        ((l1 - l0) * inv_h, (k1 - k0) * inv_h, (s1 - s0) * inv_h)
+    };
+    // The reach's ends move with x and s: what the kernel leaves there (e^{−6} of it) counts in
+    // the derivatives, as the quadrature itself moves with them.
+    let end = |t: f64| kernel(t).0 * rise_at(t).0;
+    out.d_x += end(t_hi);
+    out.d_s += 6.0 * end(t_hi);
+    if x - reach > 0.0 {
+        out.d_x -= end(x - reach);
+        out.d_s += 6.0 * end(x - reach);
+    }
+    // The shading has a kink where a side lamp's terminator crosses this radius (beyond it
+    // nothing is lit): the quadrature is split there, each side smooth.
+    let u_kink = (lamp < 0.0)
+        .then(|| (r * (1.0 - 1.0 / (1.0 + lamp * lamp).sqrt())).sqrt())
+        .filter(|&u| u > u_lo && u < u_hi);
+    let spans = match u_kink {
+        Some(k) => [(u_lo, k), (k, u_hi)],
+        None => [(u_lo, u_hi), (u_hi, u_hi)],
+    };
+    for (a, b) in spans {
+        if b <= a {
+            continue;
+        }
+        let (mid, half) = (0.5 * (b + a), 0.5 * (b - a));
+        for (node, weight) in GL12 {
+            let u = mid + half * node;
+            let t = u * u;
+            let w = weight * half * 2.0 * u;
+            let (dg, g_dlamp, g_drho) = rise_at(t);
+            let (kern, k_dx, k_ds) = kernel(t);
+            out.rise += w * kern * dg;
+            out.d_x += w * k_dx * dg;
+            out.d_s += w * k_ds * dg;
+            // ∂ρ/∂R = t/R².
+            out.d_r += w * kern * g_drho * t / (r * r);
+            out.d_lamp += w * kern * (g_dlamp - lit_limb);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::{mean_lit, softplus};
@@ -161,5 +282,44 @@ mod tests {
         }
         assert!(worst < 1e-15, "relative error {worst:e}");
         assert_eq!(super::ln_1p_unit(0.0), 0.0);
+    }
+
+    /// `blurred_rise`'s derivatives against central differences (across the limb, inside, past
+    /// a side lamp's terminator, with a box and with a strip), and its limits: nothing far
+    /// outside the disc, and deep inside the shading's own rise at that depth (the blur of a
+    /// smooth function over a kernel much narrower than its curvature).
+    #[test]
+    fn the_blurred_rise_has_the_derivatives_it_claims_and_its_limits() {
+        let h = 1e-6;
+        let r = 6.85;
+        for (x, bw, s, lamp) in [
+            (0.0, 1.0, 0.6, 0.18),
+            (-0.8, 1.0, 0.3, 0.05),
+            (1.5, 1.0 / 3.0, 0.4, -0.6),
+            (3.0, 1.0, 0.2, 0.36),
+        ] {
+            let b = super::blurred_rise(x, bw, s, r, lamp);
+            let num = |f: &dyn Fn(f64) -> f64, v: f64| (f(v + h) - f(v - h)) / (2.0 * h);
+            let dx = num(&|v| super::blurred_rise(v, bw, s, r, lamp).rise, x);
+            let ds = num(&|v| super::blurred_rise(x, bw, v, r, lamp).rise, s);
+            let dr = num(&|v| super::blurred_rise(x, bw, s, v, lamp).rise, r);
+            let dl = num(&|v| super::blurred_rise(x, bw, s, r, v).rise, lamp);
+            // (The kernel's reach moves with x and s; what lies beyond it is below 1e-3.)
+            let ok = |a: f64, c: f64| (a - c).abs() < 2e-3 * (1.0 + c.abs());
+            assert!(
+                ok(dx, b.d_x) && ok(ds, b.d_s) && ok(dr, b.d_r) && ok(dl, b.d_lamp),
+                "x {x}, s {s}, λ {lamp}: numeric ({dx}, {ds}, {dr}, {dl}) vs ({}, {}, {}, {})",
+                b.d_x,
+                b.d_s,
+                b.d_r,
+                b.d_lamp
+            );
+        }
+        assert_eq!(super::blurred_rise(-10.0, 1.0, 0.5, r, 0.2).rise, 0.0);
+        let deep = 4.0;
+        let rho = 1.0 - deep / r;
+        let g = 0.2 * rho + (1.0 - rho * rho).sqrt() - 0.2;
+        let b = super::blurred_rise(deep, 1.0, 0.1, r, 0.2);
+        assert!((b.rise - g).abs() < 0.01, "{} vs {g}", b.rise);
     }
 }
