@@ -2,12 +2,13 @@
 //! (further inside where the edge is blurred), integrated over each pixel's area where the edge
 //! crosses it; one disc, two discs whose rings meet fitted together, or the front disc hiding
 //! the back one. `ring` gathers the pixels, `model` holds the disc's shading averaged over a
-//! box, `fit` the Levenberg–Marquardt fit of them, and `dark_patches` the dots a blur has
-//! spread, which that fit leaves out.
+//! box, `pixel` the model at one pixel, `fit` the Levenberg–Marquardt fit of it, and
+//! `dark_patches` the dots a blur has spread, which that fit leaves out.
 
 mod dark_patches;
 mod fit;
 mod model;
+mod pixel;
 mod ring;
 
 use super::edge::sectors_covered;
