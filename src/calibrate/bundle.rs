@@ -424,9 +424,10 @@ pub(super) fn fit_bundle(
     })
 }
 
-/// Whether a measured disc reaches a view's border: such a disc is fitted at the radius its
-/// view's nominal scale gives (`tracking::measure::fit_blob`), which a lens or perspective
-/// makes wrong there, and its centre moves across the cut with that error.
+/// Whether a measured disc reaches a view's border: such a disc is fitted at a known radius
+/// (`tracking::measure::fit_blob`), here the provisional map's, with no lens yet (calibrate is
+/// fitting it) and no perspective, which makes it wrong there; its centre moves across the cut
+/// with that error.
 fn cut_by_border(view: &View, m: &crate::analysis::tracking::Measurement) -> bool {
     let r = 0.5 * m.diameter_px + 1.0;
     let [c0, c1] = m.centre_px;
