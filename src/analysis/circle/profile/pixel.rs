@@ -91,44 +91,28 @@ impl PixelModel {
             // `mean_lit`. A point sample of max(0, g) and of √ at the limb is not the box's
             // mean, and has kinks where the mean has none. (Counted on the independent
             // renders, this part did not itself cut the iterations; the step's box did.)
-            let inv_r = 1.0 / r;
-            let rho0 = ((r - y0) * inv_r).clamp(-1.0, 1.0);
-            let rho1 = ((r - y1) * inv_r).clamp(-1.0, 1.0);
             let (c1, c2) = (p[o + 6], p[o + 7]);
             let lamp = c1 * cs + c2 * sn;
-            let lit = mean_lit(rho0, rho1, lamp);
             let b = p[o + 5];
-            let inner = p[o + 4] + b * lit.mean + p[o + 8] * cs + p[o + 9] * sn;
-            let shown = inner - hidden;
-            // Through ρᵢ = (R − sp(R − d ± h/2, s))/R: ∂ρᵢ/∂d = lᵢ/R, ∂ρᵢ/∂R =
-            // ((1 − lᵢ) − ρᵢ)/R, ∂ρᵢ/∂s = −(∂sp/∂s)ᵢ/R.
-            let dg_dd = (lit.d_rho0 * l0 + lit.d_rho1 * l1) * inv_r;
-            let dg_dr =
-                (lit.d_rho0 * ((1.0 - l0) - rho0) + lit.d_rho1 * ((1.0 - l1) - rho1)) * inv_r;
-            let dg_ds = -(lit.d_rho0 * ds0 + lit.d_rho1 * ds1) * inv_r;
             // dd/dcx = −cos θ, dd/dcy = −sin θ; d(cos θ)/dcx = −sin²θ/d, d(sin θ)/dcx =
             // cos θ sin θ/d, and for cy the same turned by 90°.
             let dlamp_dcx = (-c1 * sn * sn + c2 * cs * sn) * inv_d;
             let dlamp_dcy = (c1 * cs * sn - c2 * cs * cs) * inv_d;
-            let di_dcx = b * (-dg_dd * cs + lit.d_lamp * dlamp_dcx)
-                + (-p[o + 8] * sn * sn + p[o + 9] * cs * sn) * inv_d;
-            let di_dcy = b * (-dg_dd * sn + lit.d_lamp * dlamp_dcy)
-                + (p[o + 8] * cs * sn - p[o + 9] * cs * cs) * inv_d;
-            let di_dr = b * dg_dr;
+            // The harmonic's level round the disc, moved with the centre.
+            let harm_dcx = (-p[o + 8] * sn * sn + p[o + 9] * cs * sn) * inv_d;
+            let harm_dcy = (p[o + 8] * cs * sn - p[o + 9] * cs * cs) * inv_d;
             // The image of a blurred disc is the blur of the step times the shading: the
             // shading at the limb times the blurred step, plus the blurred rise inside it
-            // (`blurred_rise`). The product below (the step times the shading's mean at the
-            // blurred depth) put a blurred disc lit 5–15° off the axis 0.03–0.1 px away from
-            // the lamp; this, within 0.01 there and 0.026 lit from 30° (noise-free renders,
-            // docs/accuracy.md, session 36).
+            // (`blurred_rise`); no box mean of the shading is needed, so none is taken. The
+            // product (the step times the shading's mean at the blurred depth, below) put a
+            // blurred disc lit 5–15° off the axis 0.03–0.1 px away from the lamp; this, within
+            // 0.01 there and 0.026 lit from 30° (noise-free renders, docs/accuracy.md, session 36).
             if self.convolved && N == 1 && !self.hiding {
                 let lit_limb = lamp > 0.0;
                 let g1 = if lit_limb { lamp } else { 0.0 };
                 let inner0 = p[o + 4] + b * g1 + p[o + 8] * cs + p[o + 9] * sn;
                 let shown0 = inner0 - hidden;
                 let rise = blurred_rise(x, h, s, r, lamp);
-                let harm_dcx = (-p[o + 8] * sn * sn + p[o + 9] * cs * sn) * inv_d;
-                let harm_dcy = (p[o + 8] * cs * sn - p[o + 9] * cs * cs) * inv_d;
                 let limb = if lit_limb { b } else { 0.0 };
                 let j = &mut d_term[k];
                 j[o] = dl_dx * cs * shown0
@@ -149,6 +133,21 @@ impl PixelModel {
                 step[k] = l;
                 continue;
             }
+            let inv_r = 1.0 / r;
+            let rho0 = ((r - y0) * inv_r).clamp(-1.0, 1.0);
+            let rho1 = ((r - y1) * inv_r).clamp(-1.0, 1.0);
+            let lit = mean_lit(rho0, rho1, lamp);
+            let inner = p[o + 4] + b * lit.mean + p[o + 8] * cs + p[o + 9] * sn;
+            let shown = inner - hidden;
+            // Through ρᵢ = (R − sp(R − d ± h/2, s))/R: ∂ρᵢ/∂d = lᵢ/R, ∂ρᵢ/∂R =
+            // ((1 − lᵢ) − ρᵢ)/R, ∂ρᵢ/∂s = −(∂sp/∂s)ᵢ/R.
+            let dg_dd = (lit.d_rho0 * l0 + lit.d_rho1 * l1) * inv_r;
+            let dg_dr =
+                (lit.d_rho0 * ((1.0 - l0) - rho0) + lit.d_rho1 * ((1.0 - l1) - rho1)) * inv_r;
+            let dg_ds = -(lit.d_rho0 * ds0 + lit.d_rho1 * ds1) * inv_r;
+            let di_dcx = b * (-dg_dd * cs + lit.d_lamp * dlamp_dcx) + harm_dcx;
+            let di_dcy = b * (-dg_dd * sn + lit.d_lamp * dlamp_dcy) + harm_dcy;
+            let di_dr = b * dg_dr;
             let j = &mut d_term[k];
             j[o] = dl_dx * cs * shown + l * di_dcx;
             j[o + 1] = dl_dx * sn * shown + l * di_dcy;
