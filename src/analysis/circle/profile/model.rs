@@ -153,13 +153,22 @@ pub(super) fn blurred_rise(x: f64, h: f64, s: f64, r: f64, lamp: f64) -> Blurred
         let k = l * (1.0 - l) * inv_s;
         (l, k, -z * k * inv_s)
     };
-    // ΔG at depth t, ∂ΔG/∂λ and ∂G/∂ρ.
+    // ΔG at depth t, ∂ΔG/∂λ and ∂G/∂ρ. Past the far limb (t > 2R: the kernel of a pixel near
+    // the middle of a small, much blurred disc reaches there) ρ stays at −1 and G no longer
+    // changes with it; ∂G/∂ρ there was −1/n_z with n_z = 0, 10¹² (through ∂ρ/∂R, a column of
+    // JᵀJ of 10²¹, whose ridge then made the disc's centre σ 10⁻⁵ px for a fit 1.3 px off).
     let rise_at = |t: f64| {
-        let rho = (1.0 - t / r).max(-1.0);
+        let raw = 1.0 - t / r;
+        let rho = raw.max(-1.0);
         let nz = (1.0 - rho * rho).max(0.0).sqrt();
         let g = lamp * rho + nz;
         if g > 0.0 {
-            (g - g_limb, rho, lamp - rho / nz.max(1e-12))
+            let d_rho = if raw > -1.0 {
+                lamp - rho / nz.max(1e-12)
+            } else {
+                0.0
+            };
+            (g - g_limb, rho, d_rho)
         } else {
             (-g_limb, 0.0, 0.0)
         }
@@ -181,15 +190,18 @@ pub(super) fn blurred_rise(x: f64, h: f64, s: f64, r: f64, lamp: f64) -> Blurred
         out.d_s += 6.0 * end(x - reach);
     }
     // The shading has a kink where a side lamp's terminator crosses this radius (beyond it
-    // nothing is lit): the quadrature is split there, each side smooth.
+    // nothing is lit) and another at the far limb (depth 2R, where n_z returns to 0 and ρ
+    // stops): the quadrature is split at each, each side smooth.
     let u_kink = (lamp < 0.0)
         .then(|| (r * (1.0 - 1.0 / (1.0 + lamp * lamp).sqrt())).sqrt())
         .filter(|&u| u > u_lo && u < u_hi);
-    let spans = match u_kink {
-        Some(k) => [(u_lo, k), (k, u_hi)],
-        None => [(u_lo, u_hi), (u_hi, u_hi)],
+    let u_far = Some((2.0 * r).sqrt()).filter(|&u| u > u_lo && u < u_hi);
+    let (k0, k1) = match (u_kink, u_far) {
+        (Some(a), Some(b)) => (a.min(b), a.max(b)),
+        (Some(a), None) | (None, Some(a)) => (a, a),
+        (None, None) => (u_hi, u_hi),
     };
-    for (a, b) in spans {
+    for (a, b) in [(u_lo, k0), (k0, k1), (k1, u_hi)] {
         if b <= a {
             continue;
         }
@@ -297,6 +309,10 @@ mod tests {
             (-0.8, 1.0, 0.3, 0.05),
             (1.5, 1.0 / 3.0, 0.4, -0.6),
             (3.0, 1.0, 0.2, 0.36),
+            // A pixel near the middle of a small, much blurred disc: the kernel reaches past
+            // the far limb (depth 2R), where the shading no longer changes with R.
+            (5.3, 1.0, 1.45, 0.3),
+            (6.0, 1.0, 1.2, -0.4),
         ] {
             let b = super::blurred_rise(x, bw, s, r, lamp);
             let num = |f: &dyn Fn(f64) -> f64, v: f64| (f(v + h) - f(v - h)) / (2.0 * h);
