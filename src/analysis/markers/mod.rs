@@ -104,6 +104,18 @@ pub fn find(
     let noise_sigma = shading.sigma;
     let w = u1 - u0 + 1;
     let h = v1 - v0 + 1;
+    // A blur spreads a dot's darkening: at its middle a dot of radius a under a Gaussian blur
+    // of σ keeps 1 − e^{−a²/2σ²} of it (σ = π·s/√3 from the grey-level fit's edge width s; 1
+    // where the edge is sharp or unknown). The candidate test below asks for that share of a
+    // sharp dot's quarter. Why: a dot blurred by a pixel is 15–20 % darker than the shading at
+    // its middle, and none was found pixel by pixel — on eight varied-look rigs blurred by
+    // 1.0–1.2 px no spin at all was measured (docs/accuracy.md, session 37).
+    let blur_px = std::f64::consts::PI * disc.edge_width_px / 3f64.sqrt();
+    let kept_at_middle = if blur_px > 0.0 {
+        1.0 - (-(marker_radius_px * marker_radius_px) / (2.0 * blur_px * blur_px)).exp()
+    } else {
+        1.0
+    };
     let mut dark = vec![0.0f64; w * h];
     for v in v0..=v1 {
         for u in u0..=u1 {
@@ -115,12 +127,12 @@ pub fn find(
             }
             let e = expected(u as f64, v as f64);
             let d = img.below(u, v, e);
-            // A pixel is a candidate when it is a quarter darker than the shading and clear of
-            // the noise; a dot is kept below when its darkness summed over its pixels is (see
+            // A pixel is a candidate when it is a quarter darker than the shading (under a
+            // blur, the share of that its middle keeps) and clear of the noise; a dot is kept below when its darkness summed over its pixels is (see
             // `DOT_SIGNIFICANCE`). Why the sum: a faint dot (dark paint on a dark sphere) is
             // darker than the noise in each of its pixels by only a few σ, but over all of them
             // by many; a lone noisy pixel is not.
-            if d > (0.25 * e).max(2.5 * noise_sigma) {
+            if d > (0.25 * kept_at_middle * e).max(2.5 * noise_sigma) {
                 dark[(v - v0) * w + (u - u0)] = d;
             }
         }
@@ -186,7 +198,6 @@ pub fn find(
     // nor its centroid holds (on defocused varied looks such dots came out up to a pixel off,
     // and the spins resting on them up to 10σ). Unknown blur (a fit on edge points) counts as
     // blurred.
-    let blur_px = std::f64::consts::PI * disc.edge_width_px / 3f64.sqrt();
     let faint = dots.is_empty() && blur_px <= 0.5 * marker_radius_px;
     if faint {
         dots.extend(faint_dots(
