@@ -28,6 +28,7 @@ fn abort_flag() -> Arc<AtomicBool> {
     if let Err(e) = ctrlc::set_handler(move || a.store(true, Ordering::SeqCst)) {
         tracing::warn!("cannot install the Ctrl-C handler: {e}");
     }
+    impactcam::trigger::raise_on_panic(abort.clone());
     abort
 }
 

@@ -215,6 +215,20 @@ impl Trigger {
     }
 }
 
+/// Raises `flag` when any thread panics, before the panic is reported. Pass the flag given to
+/// `Trigger::fire`: a pulse in progress watches it every millisecond and opens the relay. Why
+/// before the report: the default hook writes the panic's backtrace where RUST_BACKTRACE asks
+/// for one, and only the unwinding after it reaches the pulse's own release; with three busy
+/// loops beside it a debug build held the relay 640 ms past the panic that way, 2–8 ms this way
+/// (tests/faults.rs, docs/ARCHITECTURE.md's invariants).
+pub fn raise_on_panic(flag: Arc<AtomicBool>) {
+    let previous = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        flag.store(true, Ordering::SeqCst);
+        previous(info);
+    }));
+}
+
 fn lock(relay: &Mutex<Box<dyn Relay>>) -> std::sync::MutexGuard<'_, Box<dyn Relay>> {
     // A panic while holding the lock leaves the relay object usable; releasing it matters more.
     relay.lock().unwrap_or_else(|p| p.into_inner())
@@ -371,6 +385,35 @@ mod tests {
         let l = log.lock().unwrap();
         assert_eq!(l.last().map(|e| e.1), Some(false));
         assert!(l[1].0 - l[0].0 < Duration::from_millis(1000));
+    }
+
+    #[test]
+    fn a_panic_on_another_thread_raises_the_flag_before_it_unwinds() {
+        let flag = Arc::new(AtomicBool::new(false));
+        raise_on_panic(flag.clone());
+        let seen = flag.clone();
+        // The panicking thread looks at the flag from a value it drops while unwinding: by then
+        // the hook must have raised it.
+        struct Look(Arc<AtomicBool>, Arc<Mutex<Option<bool>>>);
+        impl Drop for Look {
+            fn drop(&mut self) {
+                *self.1.lock().unwrap() = Some(self.0.load(Ordering::SeqCst));
+            }
+        }
+        let during = Arc::new(Mutex::new(None));
+        let d = during.clone();
+        let joined = std::thread::spawn(move || {
+            let _look = Look(seen, d);
+            panic!("a panic the test asks for");
+        })
+        .join();
+        assert!(joined.is_err());
+        assert_eq!(
+            *during.lock().unwrap(),
+            Some(true),
+            "raised before unwinding"
+        );
+        assert!(flag.load(Ordering::SeqCst));
     }
 
     #[test]
