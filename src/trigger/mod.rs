@@ -219,7 +219,7 @@ impl Trigger {
 /// `Trigger::fire`: a pulse in progress watches it every millisecond and opens the relay. Why
 /// before the report: the default hook writes the panic's backtrace where RUST_BACKTRACE asks
 /// for one, and only the unwinding after it reaches the pulse's own release; with three busy
-/// loops beside it a debug build held the relay 640 ms past the panic that way, 2–8 ms this way
+/// loops beside it a debug build held the relay 640–650 ms past the panic that way, 2–8 ms now
 /// (tests/faults.rs, docs/ARCHITECTURE.md's invariants).
 pub fn raise_on_panic(flag: Arc<AtomicBool>) {
     let previous = std::panic::take_hook();

@@ -128,10 +128,11 @@ pub fn find(
             let e = expected(u as f64, v as f64);
             let d = img.below(u, v, e);
             // A pixel is a candidate when it is a quarter darker than the shading (under a
-            // blur, the share of that its middle keeps) and clear of the noise; a dot is kept below when its darkness summed over its pixels is (see
-            // `DOT_SIGNIFICANCE`). Why the sum: a faint dot (dark paint on a dark sphere) is
-            // darker than the noise in each of its pixels by only a few σ, but over all of them
-            // by many; a lone noisy pixel is not.
+            // blur, the share of that its middle keeps) and clear of the noise; a dot is kept
+            // below when its darkness summed over its pixels is (see `DOT_SIGNIFICANCE`). Why
+            // the sum: a faint dot (dark paint on a dark sphere) is darker than the noise in
+            // each of its pixels by only a few σ, but over all of them by many; a lone noisy
+            // pixel is not.
             if d > (0.25 * kept_at_middle * e).max(2.5 * noise_sigma) {
                 dark[(v - v0) * w + (u - u0)] = d;
             }
