@@ -296,9 +296,66 @@ fn fault_matrix() {
     rows.push(panic_mid_pulse());
     // The relay's port vanishes mid-pulse (a USB module unplugged).
     rows.push(port_gone_mid_pulse());
+    // A panic in the daemon's experiment with the relay closed (the same fail point).
+    rows.push(daemon_panic_mid_pulse());
     // An oversize request to the daemon.
     rows.push(daemon_oversize_request());
     print_matrix(&rows);
+}
+
+/// The daemon's experiment panics after firing, mid-pulse: the relay opens at once (the panic
+/// raises the daemon's abort flag before it is reported, `trigger::raise_on_panic`), and the
+/// daemon stays up.
+fn daemon_panic_mid_pulse() -> Row {
+    let emu = Emulator::start(Kind::Lcus).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = config(
+        emu.path(),
+        "frames = 5000",
+        "relay_pulse_ms = 3000.0\nrelay_pulse_ms_max = 5000.0\n",
+    );
+    std::fs::write(tmp.path().join("c.toml"), cfg).unwrap();
+    let (mut child, addr) = common::spawn_daemon_env(
+        tmp.path(),
+        &["--config", "c.toml"],
+        None,
+        Stdio::null(),
+        &[("IMPACTCAM_TEST_PANIC_AFTER_FIRING", "1")],
+    );
+    let body = "{}";
+    let mut s = std::net::TcpStream::connect(&addr).unwrap();
+    write!(s, "POST /api/experiments HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}", body.len()).unwrap();
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).unwrap();
+    assert!(answer.starts_with("HTTP/1.1 202"), "{answer}");
+    let closed = wait_closed(&emu);
+    let t0 = Instant::now();
+    let opened = loop {
+        if let Some((at, _)) = emu.switches().iter().find(|(at, c)| !c && *at > closed) {
+            break *at;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "the relay never opened"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    eprintln!(
+        "daemon panic: relay opened {:.1} ms after firing",
+        (opened - closed).as_secs_f64() * 1000.0
+    );
+    assert!(
+        opened - closed < Duration::from_millis(1500),
+        "relay held {:?} of a 3 s pulse",
+        opened - closed
+    );
+    let still_up = child.try_wait().unwrap().is_none();
+    signal(&child, "-TERM");
+    let status = child.wait().unwrap();
+    let mut row = observe("daemon panic", "mid-pulse", tmp.path(), &emu, status.code());
+    assert!(still_up && row.fired && row.open_at_end, "daemon panic");
+    row.exit = format!("up, then {}", row.exit);
+    row
 }
 
 /// `{"frames": 4294967295}` to the daemon: a 400, nothing fired, the daemon still up.

@@ -182,6 +182,9 @@ pub fn serve(
             next_id: Mutex::new(1),
             live: live::Live::default(),
         });
+        // A panic on any thread aborts the running experiment at once: its relay pulse watches
+        // this flag every millisecond (`trigger::raise_on_panic`). The next experiment lowers it.
+        crate::trigger::raise_on_panic(state.abort.clone());
         let app = Router::new()
             .route("/", get(|| async { Html(PAGE) }))
             .route("/api/status", get(views::status))

@@ -53,9 +53,21 @@ pub fn spawn_daemon(
     token: Option<&str>,
     stderr: Stdio,
 ) -> (Child, String) {
+    spawn_daemon_env(dir, args, token, stderr, &[])
+}
+
+/// `spawn_daemon` with `env` set in the daemon's environment (a fail point).
+pub fn spawn_daemon_env(
+    dir: &Path,
+    args: &[&str],
+    token: Option<&str>,
+    stderr: Stdio,
+    env: &[(&str, &str)],
+) -> (Child, String) {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_impactcam"));
     cmd.args(["serve", "--listen", "127.0.0.1:0"])
         .args(args)
+        .envs(env.iter().copied())
         .current_dir(dir)
         .env_remove("IMPACTCAM_LOG_FORMAT")
         .stdout(Stdio::piped())
