@@ -309,12 +309,7 @@ fn fault_matrix() {
 fn daemon_panic_mid_pulse() -> Row {
     let emu = Emulator::start(Kind::Lcus).unwrap();
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = config(
-        emu.path(),
-        "frames = 5000",
-        "relay_pulse_ms = 3000.0\nrelay_pulse_ms_max = 5000.0\n",
-    );
-    std::fs::write(tmp.path().join("c.toml"), cfg).unwrap();
+    std::fs::write(tmp.path().join("c.toml"), long_pulse_config(emu.path())).unwrap();
     let (mut child, addr) = common::spawn_daemon_env(
         tmp.path(),
         &["--config", "c.toml"],
@@ -322,33 +317,10 @@ fn daemon_panic_mid_pulse() -> Row {
         Stdio::null(),
         &[("IMPACTCAM_TEST_PANIC_AFTER_FIRING", "1")],
     );
-    let body = "{}";
-    let mut s = std::net::TcpStream::connect(&addr).unwrap();
-    write!(s, "POST /api/experiments HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}", body.len()).unwrap();
-    let mut answer = String::new();
-    s.read_to_string(&mut answer).unwrap();
+    let answer = post_experiment(&addr, "{}");
     assert!(answer.starts_with("HTTP/1.1 202"), "{answer}");
     let closed = wait_closed(&emu);
-    let t0 = Instant::now();
-    let opened = loop {
-        if let Some((at, _)) = emu.switches().iter().find(|(at, c)| !c && *at > closed) {
-            break *at;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(10),
-            "the relay never opened"
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    eprintln!(
-        "daemon panic: relay opened {:.1} ms after firing",
-        (opened - closed).as_secs_f64() * 1000.0
-    );
-    assert!(
-        opened - closed < Duration::from_millis(1500),
-        "relay held {:?} of a 3 s pulse",
-        opened - closed
-    );
+    assert_opened_before_the_pulse_ends("daemon panic", &emu, closed);
     let still_up = child.try_wait().unwrap().is_none();
     signal(&child, "-TERM");
     let status = child.wait().unwrap();
@@ -365,11 +337,7 @@ fn daemon_oversize_request() -> Row {
     std::fs::write(tmp.path().join("c.toml"), config(emu.path(), "", "")).unwrap();
     let (mut child, addr) =
         common::spawn_daemon(tmp.path(), &["--config", "c.toml"], None, Stdio::null());
-    let body = r#"{"frames": 4294967295}"#;
-    let mut s = std::net::TcpStream::connect(&addr).unwrap();
-    write!(s, "POST /api/experiments HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}", body.len()).unwrap();
-    let mut answer = String::new();
-    s.read_to_string(&mut answer).unwrap();
+    let answer = post_experiment(&addr, r#"{"frames": 4294967295}"#);
     assert!(answer.starts_with("HTTP/1.1 400"), "{answer}");
     assert!(answer.contains("recording.frames"), "{answer}");
     let still_up = child.try_wait().unwrap().is_none();
@@ -390,16 +358,57 @@ fn daemon_oversize_request() -> Row {
     row
 }
 
+/// The panic rows' config: a 3 s pulse, so that a relay opened well before its end was opened
+/// by the panic's path, not by the pulse's timer.
+fn long_pulse_config(port: &str) -> String {
+    config(
+        port,
+        "frames = 5000",
+        "relay_pulse_ms = 3000.0\nrelay_pulse_ms_max = 5000.0\n",
+    )
+}
+
+/// Waits (at most 10 s) for the relay to open after it closed at `closed`, prints how long it
+/// was held, and asserts that the panic's path opened it, well before the 3 s pulse's end.
+/// (The fail point panics 200 ms after firing.)
+fn assert_opened_before_the_pulse_ends(what: &str, emu: &Emulator, closed: Instant) {
+    let t0 = Instant::now();
+    let opened = loop {
+        if let Some((at, _)) = emu.switches().iter().find(|(at, c)| !c && *at > closed) {
+            break *at;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "{what}: the relay never opened"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    eprintln!(
+        "{what}: relay opened {:.1} ms after firing",
+        (opened - closed).as_secs_f64() * 1000.0
+    );
+    assert!(
+        opened - closed < Duration::from_millis(1500),
+        "{what}: relay held {:?} of a 3 s pulse",
+        opened - closed
+    );
+}
+
+/// `POST /api/experiments` with `body` to the daemon at `addr`: the whole answer.
+fn post_experiment(addr: &str, body: &str) -> String {
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    write!(s, "POST /api/experiments HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}", body.len()).unwrap();
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).unwrap();
+    answer
+}
+
 /// The main process panics after firing, mid-pulse: the relay opens at once, the session keeps
 /// its frames.
 fn panic_mid_pulse() -> Row {
     let emu = Emulator::start(Kind::Lcus).unwrap();
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = config(
-        emu.path(),
-        "frames = 5000",
-        "relay_pulse_ms = 3000.0\nrelay_pulse_ms_max = 5000.0\n",
-    );
+    let cfg = long_pulse_config(emu.path());
     let child = spawn_capture_env(
         tmp.path(),
         &cfg,
@@ -411,23 +420,8 @@ fn panic_mid_pulse() -> Row {
         err.contains("IMPACTCAM_TEST_PANIC_AFTER_FIRING"),
         "the fail point did not fire:\n{err}"
     );
-    let switches = emu.switches();
-    let closed = switches.iter().find(|(_, c)| *c).expect("fired").0;
-    let opened = switches
-        .iter()
-        .find(|(at, c)| !c && *at > closed)
-        .expect("opened")
-        .0;
-    // (The fail point panics 200 ms after firing.)
-    eprintln!(
-        "panic: relay opened {:.1} ms after firing",
-        (opened - closed).as_secs_f64() * 1000.0
-    );
-    assert!(
-        opened - closed < Duration::from_millis(1500),
-        "relay held {:?} of a 3 s pulse",
-        opened - closed
-    );
+    let closed = emu.switches().iter().find(|(_, c)| *c).expect("fired").0;
+    assert_opened_before_the_pulse_ends("panic", &emu, closed);
     let row = observe("panic", "mid-pulse", tmp.path(), &emu, out.status.code());
     assert!(
         row.open_at_end && row.frames_readable.ends_with(" ok"),

@@ -36,6 +36,13 @@ fn radial_error_under(
     })
 }
 
+/// The unit direction `deg` from the direct view's axis (+z), turned `azimuth_deg` round it
+/// from +x.
+fn direction(deg: f64, azimuth_deg: f64) -> V3 {
+    let (a, z) = (deg.to_radians(), azimuth_deg.to_radians());
+    V3::new(a.sin() * z.cos(), a.sin() * z.sin(), a.cos())
+}
+
 /// An image offset, px.
 type Px = [f64; 2];
 
@@ -160,10 +167,7 @@ fn found_on_still_sphere(
 /// width: one dot, not two).
 #[test]
 fn two_dots_run_together_are_not_taken_for_one_at_their_midpoint() {
-    let at = |deg: f64, azimuth_deg: f64| {
-        let (a, z) = (deg.to_radians(), azimuth_deg.to_radians());
-        V3::new(a.sin() * z.cos(), a.sin() * z.sin(), a.cos())
-    };
+    let at = direction;
     for (k, azimuth) in [0.0, 35.0, 90.0, 140.0].into_iter().enumerate() {
         // 2·17.1 px·sin 10.1° = 6.0 px apart, either side of the disc's centre.
         let (found, truth) = found_on_still_sphere(
@@ -305,10 +309,7 @@ fn faint_dots_are_found_by_their_area_and_none_is_made_up() {
         marker_factor: 0.75,
         ..Look::default()
     };
-    let at = |deg: f64, azimuth_deg: f64| {
-        let (a, z) = (deg.to_radians(), azimuth_deg.to_radians());
-        V3::new(a.sin() * z.cos(), a.sin() * z.sin(), a.cos())
-    };
+    let at = direction;
     let (mut dots, mut near) = (0, 0);
     for k in 0..12 {
         let alpha = [10.0, 25.0, 40.0][k % 3];
@@ -438,9 +439,7 @@ fn blurred_dots_are_found_and_none_is_made_up() {
         views: vec![ViewLook {
             light_off_axis_deg: 20.0,
             light_azimuth_deg: 45.0 * k as f64,
-            gain: 1.0,
-            gradient_per_100px: [0.0, 0.0],
-            vignetting: 0.0,
+            ..ViewLook::default()
         }],
         ambient: 0.35,
         marker_paint: MarkerPaint::Multiplicative,
@@ -448,10 +447,7 @@ fn blurred_dots_are_found_and_none_is_made_up() {
         defocus_sigma_px: [0.6, 0.9, 1.2][k % 3],
         ..Look::default()
     };
-    let at = |deg: f64, azimuth_deg: f64| {
-        let (a, z) = (deg.to_radians(), azimuth_deg.to_radians());
-        V3::new(a.sin() * z.cos(), a.sin() * z.sin(), a.cos())
-    };
+    let at = direction;
     let mut offs = Vec::new();
     let mut extra = 0;
     for k in 0..12 {
