@@ -193,10 +193,10 @@ pub fn analyze_detailed(
         inner: src,
         backdrop,
     };
-    // The first pass's fits where the second masks no dot are the same fits.
+    // The first pass's fits, for the second to finish.
     let memo = tracking::FitMemo::default();
     // Two passes over the frames, each counted as half of the progress: the first finds the
-    // markers and spins, the second measures the circles again without the dots that the
+    // markers and spins, the second measures the circles to the end, without the dots that the
     // spins put on each rim.
     let (obs, unmeasured) =
         tracking::measure_all(src, &views, cfg, &DotMasks::new(), &memo, &mut |i, n| {
@@ -208,21 +208,16 @@ pub fn analyze_detailed(
         warnings: warnings.clone(),
         frames_dropped,
     };
-    // The first pass's report is final only where it finds no dots on a rim; the geometry's
-    // uncertainty (re-running the fits) is added to the final one only.
+    // The first pass's report gives the spins that carry its dots round each rim; the
+    // geometry's uncertainty (re-running the fits) is added to the final one only.
     let first = stages::timed(stages::Stage::Fits, || {
-        observations_once(input(), obs.clone(), unmeasured.clone(), views.clone(), cfg)
+        observations_once(input(), obs, unmeasured, views.clone(), cfg)
     })?;
     let dots = rim_dots(&first.1, cfg);
-    if dots.is_empty() {
-        progress(src.len(), src.len());
-        let (mut report, details) = first;
-        stages::timed(stages::Stage::Fits, || {
-            add_geometry_uncertainty(&mut report, &input(), &obs, &views, cfg)
-        });
-        return physical(Ok((report, details)));
-    }
+    // The first pass's grey-level fits stopped after their box rounds: the second finishes
+    // them, with the rim dots masked where there are any.
     stages::set_pass(1);
+    memo.start_second_pass();
     let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, &dots, &memo, &mut |i, n| {
         progress((n + i) / 2, n)
     })?;
@@ -348,8 +343,22 @@ fn observations_once(
     };
     let min_side = cfg.analysis.min_frames_per_side as usize;
     let radii = [cfg.spheres.sphere(0).0 / 2.0, cfg.spheres.sphere(1).0 / 2.0];
+    let masses = [cfg.spheres.sphere(0).1, cfg.spheres.sphere(1).1];
+    let momentum_ok = masses.iter().all(|m| m.is_finite() && *m > 0.0);
+    // An axis one phase did not measure is taken from the others' momentum where the masses are
+    // known (`phases::keep_common_axes`).
+    let masses_known = momentum_ok.then_some(masses);
     for _ in 0..8 {
-        let fits = fit_all(&obs, &views, split, split, 0.5 * period, g, min_side);
+        let fits = fit_all(
+            &obs,
+            &views,
+            split,
+            split,
+            0.5 * period,
+            g,
+            min_side,
+            masses_known,
+        );
         for (k, side) in fits.iter().enumerate() {
             let n = side.axes[0].map(|l| l.n).unwrap_or(0);
             if n < min_side {
@@ -384,14 +393,21 @@ fn observations_once(
         }
     }
     // Final fits referenced at the impact time, so p0 and v are the state at impact.
-    let fits = fit_all(&obs, &views, split, split, 0.5 * period, g, min_side);
+    let fits = fit_all(
+        &obs,
+        &views,
+        split,
+        split,
+        0.5 * period,
+        g,
+        min_side,
+        masses_known,
+    );
     let mut warnings = input_warnings;
     warnings.extend(renamed);
     warnings.extend(hidden_notes);
     // Momentum across the impact (`momentum`): the four phases' velocities checked against it
     // and, where they agree within 3σ, combined under it from here on.
-    let masses = [cfg.spheres.sphere(0).1, cfg.spheres.sphere(1).1];
-    let momentum_ok = masses.iter().all(|m| m.is_finite() && *m > 0.0);
     let bodies = Bodies {
         radii,
         momentum: match momentum_ok
@@ -467,6 +483,7 @@ fn observations_once(
             contact_mm,
             split,
             g,
+            masses_known,
         ),
     ) {
         let measured_3d = s0.velocities.iter().all(|v| v.iter().all(|x| *x > 0.0));
@@ -556,6 +573,7 @@ fn observations_once(
         contact_mm,
         split,
         g,
+        masses_known,
     )
     .map_err(impact_err)?;
     let t_c = split + d.tau_c;
@@ -595,6 +613,15 @@ fn observations_once(
             ["x", "y", "z"][i],
             missing.join(", "),
             ["x", "y", "z"][i]
+        ));
+    }
+    // Axes one phase took from the others' momentum (`phases::keep_common_axes`).
+    for i in (0..3).filter(|&i| fits.iter().any(|f| f.axes[i].is_some_and(|l| l.n == 0))) {
+        let missing = phases_missing_axis(&obs, &views, split, 0.5 * period, g, i, min_side);
+        warnings.push(format!(
+            "{axis} was not measured for sphere {} the impact (the spheres overlap or hide each other in the one view that sees {axis} there): its {axis} velocity there is taken from momentum conservation (masses from spheres.mass_g) and its {axis} at the impact from its own track in the other phase",
+            missing.join(", "),
+            axis = ["x", "y", "z"][i],
         ));
     }
     let dropped = frames_dropped;
@@ -909,12 +936,65 @@ mod tests {
             SideFit::fit(&full, 0.0, 0.0),
         ];
         assert!(fits[0].axes[2].is_some());
-        assert_eq!(keep_common_axes(&mut fits), vec![2]);
+        assert_eq!(keep_common_axes(&mut fits, None), vec![2]);
         assert!(fits
             .iter()
             .all(|f| f.axes[2].is_none() && f.axes[0].is_some()));
         // Nothing to drop when every phase has every axis it had.
-        assert!(keep_common_axes(&mut fits).is_empty());
+        assert!(keep_common_axes(&mut fits, None).is_empty());
+    }
+
+    /// With the masses known, a coordinate one phase lacks is taken from the other three:
+    /// its velocity from momentum (a after, masses 2 and 1 g: 2·(v − 5) + 1·(−7 − 9) = 0, v = 13),
+    /// its position at the impact the same sphere's before it, and the variance those give
+    /// it; two phases without it, or no masses, and it is dropped as before.
+    #[test]
+    fn an_axis_one_phase_lacks_is_taken_from_the_others_momentum() {
+        let times: Vec<f64> = (0..10).map(|k| k as f64 * 1e-3 - 5e-3).collect();
+        let series = |z0: f64, vz: f64, noise: f64| -> [kinematics::Series; 3] {
+            let jitter = |k: usize| if k.is_multiple_of(2) { noise } else { -noise };
+            let line = |p0: f64, v: f64| -> kinematics::Series {
+                times
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &t)| (t, p0 + v * t + jitter(k)))
+                    .collect()
+            };
+            [line(0.0, 100.0), line(0.0, -200.0), line(z0, vz)]
+        };
+        let no_z = |s: [kinematics::Series; 3]| [s[0].clone(), s[1].clone(), Vec::new()];
+        let fits_with = |missing: &[usize]| -> Fits {
+            let zs = [(1.5, 5.0), (-1.5, 9.0), (1.5, 0.0), (-1.5, -7.0)];
+            [0, 1, 2, 3].map(|k| {
+                let s = series(zs[k].0, zs[k].1, 1e-3);
+                SideFit::fit(&if missing.contains(&k) { no_z(s) } else { s }, 0.0, 0.0)
+            })
+        };
+        let masses = [2.0, 1.0];
+        let mut fits = fits_with(&[2]);
+        assert!(keep_common_axes(&mut fits, Some(masses)).is_empty());
+        let z = fits[2].axes[2].expect("a's z after the impact, from the others");
+        let fitted = |k: usize| fits[k].axes[2].expect("measured");
+        let v = fitted(0).v + (fitted(1).v - fitted(3).v) / 2.0;
+        assert!(
+            (z.v - v).abs() < 1e-9 && (v - 13.0).abs() < 0.1,
+            "v {} vs {v}",
+            z.v
+        );
+        assert_eq!(z.p0, fitted(0).p0);
+        assert!((z.p0 - 1.5).abs() < 1e-3, "p0 {}", z.p0);
+        assert_eq!(z.n, 0, "marked as measured by no frame");
+        let var = |k: usize| fits[k].axes[2].map_or(f64::NAN, |l| l.cov[(1, 1)]);
+        let expected = var(0) + (var(1) + var(3)) / 4.0;
+        assert!(var(0) > 0.0 && (z.cov[(1, 1)] - expected).abs() < 1e-9 * expected);
+        // The momentum check leaves that axis out: it holds there by construction.
+        assert!(momentum::combination(&fits, [-2.0, -1.0, 2.0, 1.0])
+            .iter()
+            .all(|(i, _, _)| *i != 2));
+        let mut two = fits_with(&[2, 3]);
+        assert_eq!(keep_common_axes(&mut two, Some(masses)), vec![2]);
+        let mut unknown = fits_with(&[2]);
+        assert_eq!(keep_common_axes(&mut unknown, None), vec![2]);
     }
 
     /// A sphere seen rolling down its tube (vertical acceleration a fifth of g) for 30 frames,

@@ -12,11 +12,19 @@ const CHI2_3SIGMA: [f64; 3] = [9.0, 11.83, 14.16];
 
 /// Per axis measured in all four phases: Σ A_k·v_k over (a before, b before, a after, b after)
 /// and its variance from the fits'. Momentum's residual is A = (−m_a, −m_b, m_a, m_b); the
-/// change of the relative velocity across the split (`kinematics`) is A = (1, −1, −1, 1).
+/// change of the relative velocity across the split (`kinematics`) is A = (1, −1, −1, 1). An
+/// axis one phase took from the others' momentum (`phases::keep_common_axes`; no frame, n = 0)
+/// is not measured in all four: it holds momentum by construction.
 pub(super) fn combination(fits: &Fits, a: [f64; 4]) -> Vec<(usize, f64, f64)> {
     (0..3)
         .filter_map(|i| {
             let lines: Vec<_> = fits.iter().map(|f| f.axes[i]).collect::<Option<_>>()?;
+            if lines
+                .iter()
+                .any(|l: &crate::analysis::line_fit::LineFit| l.n == 0)
+            {
+                return None;
+            }
             let r: f64 = lines.iter().zip(&a).map(|(l, a)| a * l.v).sum();
             let var: f64 = lines
                 .iter()

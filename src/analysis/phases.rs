@@ -4,8 +4,10 @@
 
 use super::geometry::{View, ViewKind};
 use super::kinematics::{self, Fits, Series, SideFit};
+use super::line_fit::LineFit;
 use super::markers;
 use super::tracking::FrameObs;
+use nalgebra::Matrix2;
 
 /// Per-sphere coordinate series (x, y, z) in world mm over the given frames, built from the
 /// views: y from the direct view, z from the mirror, x from the direct view where it measured
@@ -389,7 +391,9 @@ pub(super) fn free_flight(
     kept
 }
 
-/// The four ballistic fits for a given split.
+/// The four ballistic fits for a given split (an axis one phase lacks taken from the others'
+/// momentum where `masses` are known, `keep_common_axes`).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn fit_all(
     obs: &[FrameObs],
     views: &[View],
@@ -398,6 +402,7 @@ pub(super) fn fit_all(
     guard: f64,
     g: f64,
     min_side: usize,
+    masses: Option<[f64; 2]>,
 ) -> Fits {
     let ph = flight_phases(obs, views, split, guard, g, min_side);
     // The final fits' σ floored at the centres' own (`fit_line`); while a phase grows (above)
@@ -406,7 +411,7 @@ pub(super) fn fit_all(
         let (series, floor, weights) = series_and_sigma(obs, views, k % 2, &ph[k]);
         SideFit::fit_weighted(&series, &weights, t_ref, g, floor)
     });
-    keep_common_axes(&mut fits);
+    keep_common_axes(&mut fits, masses);
     fits
 }
 
@@ -455,12 +460,20 @@ pub(super) fn relift_on_trajectories(
 /// Drops a world axis from all four fits unless every one of them measured it, and says which
 /// axes went. A coordinate that no view saw for one sphere in one phase (in the mirror the two
 /// spheres can hide each other from the impact to the end of the recording) must not enter the
-/// collision as a zero velocity: the collision is then analysed in the axes all four share.
-pub(super) fn keep_common_axes(fits: &mut Fits) -> Vec<usize> {
+/// collision as a zero velocity: the collision is then analysed in the axes all four share —
+/// unless that phase alone lacks it and the masses are known (`masses`): then it is taken from
+/// the other three (`from_momentum`), and the axis stays.
+pub(super) fn keep_common_axes(fits: &mut Fits, masses: Option<[f64; 2]>) -> Vec<usize> {
     let mut dropped = Vec::new();
     for i in 0..3 {
-        let present = fits.iter().filter(|f| f.axes[i].is_some()).count();
-        if present > 0 && present < fits.len() {
+        let missing: Vec<usize> = (0..4).filter(|&k| fits[k].axes[i].is_none()).collect();
+        if missing.len() == 1 && i != 0 {
+            if let Some(line) = masses.and_then(|m| from_momentum(fits, i, missing[0], m)) {
+                fits[missing[0]].axes[i] = Some(line);
+                continue;
+            }
+        }
+        if !missing.is_empty() && missing.len() < fits.len() {
             for f in fits.iter_mut() {
                 f.axes[i] = None;
             }
@@ -468,6 +481,40 @@ pub(super) fn keep_common_axes(fits: &mut Fits) -> Vec<usize> {
         }
     }
     dropped
+}
+
+/// Phase `k`'s motion along axis `i`, which no view measured, from the other three phases: its
+/// velocity from momentum across the impact (m_a·Δv_a + m_b·Δv_b = 0, `momentum`), its
+/// position at the impact (the fits' reference time) the same sphere's in its other phase (a
+/// sphere does not jump), each with the variance those give it. Why: the mirror view alone
+/// sees z, and after an impact the spheres often hide each other there for the rest of the
+/// recording; dropping z then left a 2-D result whose e, ψ and β were those of the motion's
+/// projection — e 0.10–0.13 off a true 0.90 on a bench rig whose normal leans 12° out of the
+/// view's plane, at up to 9σ (docs/accuracy.md, session 38). Marked by `n` = 0 (no frame): the
+/// momentum check and combination leave the axis out (`momentum::combination`), as it holds
+/// there by construction. None where the masses or the other fits do not give it.
+fn from_momentum(fits: &Fits, i: usize, k: usize, masses: [f64; 2]) -> Option<LineFit> {
+    let a = [-masses[0], -masses[1], masses[0], masses[1]];
+    if !a.iter().all(|x| x.is_finite() && *x != 0.0) {
+        return None;
+    }
+    let (mut sum, mut var) = (0.0, 0.0);
+    for j in (0..4).filter(|&j| j != k) {
+        let l = fits[j].axes[i]?;
+        sum += a[j] * l.v;
+        var += a[j] * a[j] * l.cov[(1, 1)];
+    }
+    let twin = fits[k ^ 2].axes[i]?;
+    let v = -sum / a[k];
+    let var_v = var / (a[k] * a[k]);
+    (v.is_finite() && var_v.is_finite()).then(|| LineFit {
+        p0: twin.p0,
+        v,
+        cov: Matrix2::new(twin.cov[(0, 0)], 0.0, 0.0, var_v),
+        rms: 0.0,
+        n: 0,
+        rejected: 0,
+    })
 }
 
 /// Which of [a pre, b pre, a post, b post] measured no position along world axis `i`.

@@ -33,6 +33,7 @@ pub(super) fn combined_uncertainties(
     contact_mm: f64,
     split: f64,
     g: f64,
+    masses: Option<[f64; 2]>,
 ) -> Result<kinematics::Derived, ImpactError> {
     let omega = spins.map(|f| f.map(|f| f.omega));
     // The trajectories' part, with the spins held at their estimates.
@@ -52,7 +53,7 @@ pub(super) fn combined_uncertainties(
         let fk: Fits =
             [0, 1, 2, 3].map(|j| SideFit::fit(&series(obs, views, j % 2, &without[j]), split, g));
         let mut fk = fk;
-        keep_common_axes(&mut fk);
+        keep_common_axes(&mut fk, masses);
         if let Ok(d) = derive(&fk, omega, bodies, contact_mm, g) {
             reps.push(d.to_vec());
         }

@@ -103,6 +103,47 @@ pub fn refine_noting_backdrop(
     }
 }
 
+/// `refine_noting_backdrop` as far as the grey-level fit's box rounds go (`profile_plan`):
+/// what it gives now, and what the fit's final round needs (`profile_finish`). None where
+/// `refine_noting_backdrop` gives none.
+pub fn refine_plan(
+    img: &GreyImage,
+    view: &View,
+    rough: [f64; 2],
+    radius_px: f64,
+    background: f64,
+    other: Option<([f64; 2], f64)>,
+    dots: &[DotMask],
+) -> Option<Refined> {
+    let (edge, hidden) = fit_edges(img, view, rough, radius_px, background, other)?;
+    match profile_plan(img, view, &edge, background, other, dots, None) {
+        Some((fit, plan)) => Some(Refined {
+            fit,
+            hidden,
+            edge,
+            plan: Some(plan),
+        }),
+        None if hidden => None,
+        None => Some(Refined {
+            fit: edge,
+            hidden: false,
+            edge,
+            plan: None,
+        }),
+    }
+}
+
+/// What `refine_plan` gives: the fit as far as it went, whether a static backdrop hid part of
+/// the edge, the edge-point fit (what `refine_noting_backdrop` falls back to where the
+/// grey-level fit fails unhidden), and the grey-level fit's final round if it is still to do.
+#[derive(Clone, Debug)]
+pub struct Refined {
+    pub fit: CircleFit,
+    pub hidden: bool,
+    pub edge: CircleFit,
+    pub plan: Option<ProfilePlan>,
+}
+
 /// The grey-level fit alone, started at `centre` with the known radius: for a disc whose edge
 /// a static backdrop hid, where the sphere's own track says it is (`tracking`). The edge-point
 /// fit is left out: on the few rays the backdrop leaves it may move a good start by a pixel

@@ -37,7 +37,7 @@ use crate::analysis::image::SATURATED_GREY;
 const SPHERE_RADIUS_MM: f64 = 3.175;
 
 /// One view filling a `width`×`height` frame, u along +x.
-fn test_view(
+pub(super) fn test_view(
     kind: ViewKind,
     width: u32,
     height: u32,
@@ -57,7 +57,7 @@ fn test_view(
 
 /// The lab's direct view (2.1576 px/mm) filling a `width`×`height` frame, the sphere's
 /// radius in it, px, and the simulator's scene without dots (noise σ = 2).
-fn dotless_direct_view(
+pub(super) fn dotless_direct_view(
     width: u32,
     height: u32,
     origin_px: [f64; 2],
@@ -73,7 +73,7 @@ fn dotless_direct_view(
 
 /// Two still spheres without dots, rendered by the simulator: the frame and their true
 /// centres, px.
-fn render_pair(
+pub(super) fn render_pair(
     view: &View,
     width: u32,
     height: u32,
@@ -85,7 +85,7 @@ fn render_pair(
 }
 
 /// As `render_pair`, with dots at the given world points (on each sphere's surface).
-fn render_with_dots(
+pub(super) fn render_with_dots(
     view: &View,
     width: u32,
     height: u32,
@@ -421,7 +421,10 @@ fn one_silhouette_of_two_overlapping_spheres_gives_both_discs() {
 /// Renders of one sphere (as `cfg` draws it) at 40 sub-pixel phases, with `markers` dots
 /// turned at random; returns the grey-level fit's centre error per render, px, without and with the
 /// true dots near the rim masked.
-fn lone_sphere_errors(cfg: &hw_sim::LabConfig, markers: usize) -> Vec<([f64; 2], [f64; 2])> {
+pub(super) fn lone_sphere_errors(
+    cfg: &hw_sim::LabConfig,
+    markers: usize,
+) -> Vec<([f64; 2], [f64; 2])> {
     let view = test_view(ViewKind::Direct, 64, 48, 2.1576, [31.3, 23.6], "-y");
     let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
     let mut out = Vec::new();

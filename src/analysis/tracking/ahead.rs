@@ -9,10 +9,10 @@
 //! other sphere. Spheres of two sizes give no guess (which radius goes with which blob is a
 //! label), so there only detection is done ahead.
 //!
-//! `FitMemo` keeps the first pass's fits for the second: where the second pass masks no dot in
-//! a view of a frame, a fit asked for with the same arguments is the same fit, not done again.
+//! `FitMemo` keeps the first pass's fits for the second: the first pass's stop after their box
+//! rounds, and the second finishes each with its dots masked rather than fitting it again.
 
-use super::measure::{fit_blob, BlobFit};
+use super::measure::{finish_blob, fit_blob, plan_blob, BlobFit, BlobPlan};
 use super::DotMasks;
 use crate::analysis::circle::DotMask;
 use crate::analysis::detect::{find_blobs, levels, Blob, ViewLevels};
@@ -20,7 +20,7 @@ use crate::analysis::geometry::View;
 use crate::analysis::image::GreyImage;
 use crate::config::Config;
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 /// The exact arguments of one `fit_blob` call besides the frame and the view's dots.
@@ -76,14 +76,21 @@ impl Ahead {
     }
 }
 
-/// Fits made without dot masks, by frame and arguments: the first pass's, for the second. And
-/// each frame's detection by view, which the second pass would otherwise repeat on the same
-/// frames (a few hundred bytes per frame and view).
+/// The first pass's fits of lone blobs, by frame and arguments, as far as their box rounds went
+/// and with what their final rounds need: the second pass finishes each with its own dots
+/// masked rather than fitting it again. And each frame's detection by view, which the second
+/// pass would otherwise repeat on the same frames (a few hundred bytes per frame and view).
 #[derive(Default)]
 pub struct FitMemo {
-    fits: Mutex<HashMap<(usize, FitKey), BlobFit>>,
+    fits: Mutex<HashMap<(usize, FitKey), Planned>>,
     detected: Mutex<HashMap<(usize, usize), Detection>>,
+    /// Set once the first pass is over (`start_second_pass`): fits asked for from then on are
+    /// final.
+    second: AtomicBool,
 }
+
+/// A blob's fit as the first pass left it, and its plan if a final round is still to do.
+type Planned = (BlobFit, Option<BlobPlan>);
 
 /// One view's detection in one frame: its levels and its blobs.
 type Detection = (ViewLevels, Vec<Blob>);
@@ -112,18 +119,15 @@ impl FitMemo {
         d
     }
 
-    /// Frame `i`'s fit with `key`'s arguments and no dot masked, if made before.
-    pub(super) fn get(&self, i: usize, key: FitKey) -> Option<BlobFit> {
-        self.fits.lock().ok()?.get(&(i, key)).copied()
-    }
-    pub(super) fn put(&self, i: usize, key: FitKey, fit: BlobFit) {
-        if let Ok(mut m) = self.fits.lock() {
-            m.insert((i, key), fit);
-        }
+    /// From now on the fits asked for are final (the second pass's).
+    pub fn start_second_pass(&self) {
+        self.second.store(true, Ordering::SeqCst);
     }
 
-    /// `fit_blob` for frame `i`, taken from the memo where no dot is masked and it was made
-    /// before, and kept there where no dot is masked.
+    /// A blob's fit for frame `i`: in the first pass as far as its box rounds go (`plan_blob`,
+    /// kept with its plan); in the second, the first pass's finished with `dots` masked
+    /// (`finish_blob`), or where the first pass did not ask for this one, `fit_blob` now.
+    /// Each is a pure function of its arguments, so it does not matter which thread asks first.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn fit_blob(
         &self,
@@ -138,16 +142,28 @@ impl FitMemo {
         dots: &[DotMask],
     ) -> BlobFit {
         let key = FitKey::new(vi, b, radius_px, other);
-        if dots.is_empty() {
-            if let Some(f) = self.get(i, key) {
+        let kept = self
+            .fits
+            .lock()
+            .ok()
+            .and_then(|m| m.get(&(i, key)).cloned());
+        if !self.second.load(Ordering::SeqCst) {
+            if let Some((f, _)) = kept {
                 return f;
             }
+            let (f, plan) = plan_blob(img, view, b, radius_px, other, background, dots);
+            if let Ok(mut m) = self.fits.lock() {
+                m.insert((i, key), (f, plan));
+            }
+            return f;
         }
-        let f = fit_blob(img, view, b, radius_px, other, background, dots);
-        if dots.is_empty() {
-            self.put(i, key, f);
+        match kept {
+            Some((_, Some(plan))) => finish_blob(img, view, &plan, dots),
+            // No grey-level fit was left to finish: without dots a fit now would fail as it
+            // did; with them masked it may not.
+            Some((f, None)) if dots.is_empty() => f,
+            _ => fit_blob(img, view, b, radius_px, other, background, dots),
         }
-        f
     }
 }
 

@@ -4,7 +4,8 @@
 
 use super::{Measurement, ViewLevels};
 use crate::analysis::circle::{
-    profile_fit_at, profile_fit_known_radius, refine_noting_backdrop, CircleFit, DotMask,
+    profile_finish, profile_fit_at, profile_plan, refine_plan, CircleFit, DotMask, ProfilePlan,
+    Refined,
 };
 use crate::analysis::detect::Blob;
 use crate::analysis::geometry::View;
@@ -35,18 +36,52 @@ pub(super) fn fit_blob(
     background: f64,
     dots: &[DotMask],
 ) -> BlobFit {
-    let fitted = stages::timed(Stage::Circles, || {
-        refine_noting_backdrop(img, view, b.centroid, radius_px, background, other, dots)
+    match plan_blob(img, view, b, radius_px, other, background, dots) {
+        (_, Some(plan)) => finish_blob(img, view, &plan, dots),
+        (fit, None) => fit,
+    }
+}
+
+/// `fit_blob` as far as the grey-level fits' box rounds go (`circle::profile_plan`): the fit
+/// they give, and what its final round needs (`finish_blob`), None where nothing is left to
+/// do (the fit is then final: an edge-point fit, or none).
+pub(super) fn plan_blob(
+    img: &GreyImage,
+    view: &View,
+    b: &Blob,
+    radius_px: f64,
+    other: Option<([f64; 2], f64)>,
+    background: f64,
+    dots: &[DotMask],
+) -> (BlobFit, Option<BlobPlan>) {
+    let refined = stages::timed(Stage::Circles, || {
+        refine_plan(img, view, b.centroid, radius_px, background, other, dots)
     });
-    let Some((f, hidden)) = fitted else {
-        return BlobFit::TooFewEdgePoints;
+    let Some(Refined {
+        fit: f,
+        hidden,
+        edge,
+        plan,
+    }) = refined
+    else {
+        return (BlobFit::TooFewEdgePoints, None);
     };
     // A disc cut by the view's border: its radius is known, and held, where the visible arc
     // cannot fix both it and the centre across the cut; an edge-point fit with a free radius
     // there was up to 0.9 px off (as far as 2 px defocused), so without this fit there is no
     // measurement.
     if !b.clipped {
-        return BlobFit::Fitted(f, hidden);
+        let plan = plan.map(|plan| BlobPlan {
+            plan,
+            counts: None,
+            hidden,
+            unfinished: if hidden {
+                BlobFit::TooFewEdgePoints
+            } else {
+                BlobFit::Fitted(edge, false)
+            },
+        });
+        return (BlobFit::Fitted(f, hidden), plan);
     }
     // The radius the lens gives a disc there, not the view's nominal one: at the top of a
     // 240 × 192 frame through k1 = −0.03 it is 0.08 px smaller, and held at the nominal the
@@ -56,19 +91,61 @@ pub(super) fn fit_blob(
         .lens
         .map_or(radius_px, |lens| radius_px * lens.radius_factor(f.centre));
     match stages::timed(Stage::Circles, || {
-        profile_fit_known_radius(img, view, &f, background, other, dots, radius_px)
+        profile_plan(img, view, &f, background, other, dots, Some(radius_px))
+    }) {
+        Some((k, plan)) => (
+            BlobFit::Fitted(with_counts_of(k, &f), hidden),
+            Some(BlobPlan {
+                plan,
+                counts: Some(f),
+                hidden,
+                unfinished: BlobFit::ClippedNotFitted,
+            }),
+        ),
+        None => (BlobFit::ClippedNotFitted, None),
+    }
+}
+
+/// The fit `plan_blob` planned, finished with `dots` masked (the first pass's plan, the second
+/// pass's dots): its final grey-level round (`circle::profile_finish`), or where that does
+/// not settle what `fit_blob` gives when the grey-level fit fails.
+pub(super) fn finish_blob(
+    img: &GreyImage,
+    view: &View,
+    plan: &BlobPlan,
+    dots: &[DotMask],
+) -> BlobFit {
+    match stages::timed(Stage::Circles, || {
+        profile_finish(img, view, &plan.plan, dots)
     }) {
         Some(k) => BlobFit::Fitted(
-            CircleFit {
-                points_used: f.points_used,
-                points_total: f.points_total,
-                arc_sectors: f.arc_sectors,
-                ..k
-            },
-            hidden,
+            plan.counts.as_ref().map_or(k, |f| with_counts_of(k, f)),
+            plan.hidden,
         ),
-        None => BlobFit::ClippedNotFitted,
+        None => plan.unfinished,
     }
+}
+
+/// A fit at the known radius with the edge points' counts of the fit it started from (its own
+/// start is that fit).
+fn with_counts_of(k: CircleFit, f: &CircleFit) -> CircleFit {
+    CircleFit {
+        points_used: f.points_used,
+        points_total: f.points_total,
+        arc_sectors: f.arc_sectors,
+        ..k
+    }
+}
+
+/// What `finish_blob` needs: the grey-level fit's plan, whether a backdrop hid part of the
+/// edge, for a clipped blob the fit whose edge-point counts it keeps, and what the blob's fit
+/// is where the final round does not settle.
+#[derive(Clone, Debug)]
+pub(super) struct BlobPlan {
+    plan: ProfilePlan,
+    counts: Option<CircleFit>,
+    hidden: bool,
+    unfinished: BlobFit,
 }
 
 /// Sphere `s`'s disc fitted on the grey levels from where its own track in this view puts it

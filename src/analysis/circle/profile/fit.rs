@@ -38,6 +38,7 @@ pub(super) enum Layering {
 /// says whether two discs' terms add or one hides the other. Each disc must settle within
 /// `max_move_px` of its start, and its radius within a pixel of the start's. Returns the discs
 /// and their fitted edge widths s, px.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn fit_grey_levels<const P: usize, const N: usize>(
     pixels: &[RingPixel],
     starts: [&CircleFit; N],
@@ -46,7 +47,8 @@ pub(super) fn fit_grey_levels<const P: usize, const N: usize>(
     radius_px: Option<f64>,
     max_move_px: f64,
     convolved: bool,
-) -> Option<([CircleFit; N], [f64; N])>
+    rounds: Rounds<'_>,
+) -> Option<Fitted<N>>
 where
     nalgebra::Const<P>: nalgebra::DimMin<nalgebra::Const<P>, Output = nalgebra::Const<P>>,
 {
@@ -71,8 +73,16 @@ where
     };
     let eval = |p: &Vp<P>, px: &RingPixel, area: bool| model.eval::<P, N>(p, px, area);
     let mut p = Vp::<P>::zeros();
-    p[0] = background;
-    for (k, st) in starts.iter().enumerate() {
+    if let Rounds::AreaFrom(kept) = rounds {
+        if kept.p.len() != P {
+            return None;
+        }
+        p.copy_from_slice(&kept.p);
+    } else {
+        p[0] = background;
+    }
+    let cold = !matches!(rounds, Rounds::AreaFrom(_));
+    for (k, st) in starts.iter().enumerate().filter(|_| cold) {
         let o = 1 + DISC_PARAMS * k;
         p[o] = st.centre[0];
         p[o + 1] = st.centre[1];
@@ -81,7 +91,7 @@ where
     }
     // Grey-level parameters first, by linear least squares with the geometry held: the
     // background and each disc's (a, b, c).
-    {
+    if cold {
         let lin_index: Vec<usize> = std::iter::once(0)
             .chain((0..N).flat_map(|k| {
                 let terms: &[usize] = if symmetric_disc == Some(k) {
@@ -388,9 +398,19 @@ where
     // Each pixel as one box first, rejecting dots; then pixels the edge crosses in strips
     // from there, which moves the centres by thousandths of a pixel.
     let mut keep = pixels.to_vec();
+    if let Rounds::AreaFrom(kept) = rounds {
+        if pixels.len() != kept.ring_len {
+            return None;
+        }
+        keep.retain(|q| !kept.rejected.contains(&[q.u as i32, q.v as i32]));
+    }
     let mut at_p = Vec::with_capacity(keep.len());
-    evaluate(&p, &keep, false, &mut at_p);
-    for round in 0..3 {
+    // The last box round's cost and JᵀJ (what a fit that stops there gives its σ from).
+    let mut boxed = None;
+    if cold {
+        evaluate(&p, &keep, false, &mut at_p);
+    }
+    for round in (0..3).filter(|_| cold) {
         // Settled only to `settle_px`: the dots to reject are all that depend on it, and the final
         // round's model is smooth, so it converges to its own minimum from here. (With point
         // samples of a near step and of √ at the limb, that round zig-zagged and where it
@@ -407,7 +427,9 @@ where
         // → 0.037 px, 38 varied-look recordings 0.0783 → 0.0741 px, 12 % fewer model
         // evaluations. In the later ones: see the final round below.
         let robust = Some(CAUCHY_SCALE * robust_sigma(&at_p, &p));
-        at_p = descend(&mut p, &keep, false, settle_px(round), robust, at_p).2;
+        let (cost, jtj, rows) = descend(&mut p, &keep, false, settle_px(round), robust, at_p);
+        at_p = rows;
+        boxed = Some((cost, jtj));
         if round == 2 {
             break;
         }
@@ -456,14 +478,24 @@ where
             return None;
         }
     }
+    if keep.len() < n_start / 2 {
+        return None;
+    }
     // The final round too (Cauchy's loss in every round rather than the first only, the same
     // 190 varied-look recordings: centre RMS 0.0688 → 0.0657 px, lower in every look family;
     // 10 % more model evaluations; docs/accuracy.md, session 29). Its cost, Σ c²·ln(1 + (r/c)²),
     // gives σ² below: no smaller than the weighted residuals' Σ w·r², so the dots left in
     // still widen the σ.
-    evaluate(&p, &keep, true, &mut at_p);
-    let final_robust = Some(CAUCHY_SCALE * robust_sigma(&at_p, &p));
-    let (cost, jtj, _) = descend(&mut p, &keep, true, 1e-4, final_robust, at_p);
+    let (cost, jtj) = match (rounds, boxed) {
+        (Rounds::Box, Some(b)) => b,
+        (Rounds::Box, None) => return None,
+        _ => {
+            evaluate(&p, &keep, true, &mut at_p);
+            let final_robust = Some(CAUCHY_SCALE * robust_sigma(&at_p, &p));
+            let (cost, jtj, _) = descend(&mut p, &keep, true, 1e-4, final_robust, at_p);
+            (cost, jtj)
+        }
+    };
     if !p.iter().all(|x| x.is_finite()) {
         return None;
     }
@@ -497,5 +529,50 @@ where
             ..**st
         };
     }
-    Some((out, widths))
+    let kept = (rounds == Rounds::Box).then(|| Kept {
+        ring_len: pixels.len(),
+        p: p.iter().copied().collect(),
+        rejected: pixels
+            .iter()
+            .filter(|q| !keep.iter().any(|k| k.u == q.u && k.v == q.v))
+            .map(|q| [q.u as i32, q.v as i32])
+            .collect(),
+    });
+    Some(Fitted {
+        discs: out,
+        widths,
+        kept,
+    })
+}
+
+/// Which of `fit_grey_levels`'s rounds to run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Rounds<'a> {
+    /// All of them: the box rounds that find the dots, then the final round over each pixel's
+    /// area.
+    All,
+    /// The box rounds only: the fit as they leave it, and what the final round needs to start
+    /// from there (`Fitted::kept`).
+    Box,
+    /// The final round only, from where an earlier fit's box rounds stopped, on the same
+    /// pixels less those they dropped: what `All` would have done next (None if the pixels
+    /// given are not as many as that fit's).
+    AreaFrom(&'a Kept),
+}
+
+/// What a fit's box rounds leave for its final round (`Rounds::Box`): how many pixels its ring
+/// had, every parameter, and the ring pixels the rounds dropped as dots (pixel coordinates).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Kept {
+    pub(super) ring_len: usize,
+    p: Vec<f64>,
+    rejected: Vec<[i32; 2]>,
+}
+
+/// A grey-level fit's discs, their edge widths s (px), and after `Rounds::Box` what its final
+/// round needs.
+pub(super) struct Fitted<const N: usize> {
+    pub(super) discs: [CircleFit; N],
+    pub(super) widths: [f64; N],
+    pub(super) kept: Option<Kept>,
 }

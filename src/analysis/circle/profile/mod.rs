@@ -13,7 +13,7 @@ mod ring;
 
 use super::edge::sectors_covered;
 use super::{CircleFit, DotMask, GreyImage, View};
-use fit::{fit_grey_levels, Layering};
+use fit::{fit_grey_levels, Kept, Layering, Rounds};
 use ring::ring_pixels;
 
 /// Half-width of the band round the edge whose pixels the profile fit uses, px.
@@ -30,8 +30,8 @@ pub const PROFILE_BAND_PX: f64 = 2.5;
 /// and so are pixels near the other sphere's disc or beyond the view's border, as long as 20 of
 /// the ring's 36 sectors stay. Where the fit finds the edge blurred, it is fitted again from
 /// there on a ring reaching further inside (`INNER_BAND_PER_EDGE_WIDTH`). A fit that settles
-/// more than a pixel from the start is tried again from there (`fit_one`). None when the fit
-/// does not settle near the start or, tried again, where it went.
+/// more than a pixel from the start is tried again from there (`profile_plan`). None when the
+/// fit does not settle near the start or, tried again, where it went.
 pub fn profile_fit(
     img: &GreyImage,
     view: &View,
@@ -40,7 +40,8 @@ pub fn profile_fit(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
 ) -> Option<CircleFit> {
-    fit_one(img, view, start, background, other, dots, None)
+    let (_, plan) = profile_plan(img, view, start, background, other, dots, None)?;
+    profile_finish(img, view, &plan, dots)
 }
 
 /// `profile_fit` with the disc's radius held at `radius_px`: for a disc cut by the view's
@@ -55,12 +56,19 @@ pub fn profile_fit_known_radius(
     dots: &[DotMask],
     radius_px: f64,
 ) -> Option<CircleFit> {
-    fit_one(img, view, start, background, other, dots, Some(radius_px))
+    let (_, plan) = profile_plan(img, view, start, background, other, dots, Some(radius_px))?;
+    profile_finish(img, view, &plan, dots)
 }
 
-/// One disc's grey-level fit, its radius free or held at `radius_px` (then 12 of the ring's
-/// sectors suffice: the radius no longer needs the ring to go round).
-fn fit_one(
+/// A lone disc's grey-level fit as far as its box rounds go (`profile_fit`, its radius held at
+/// `radius_px` where given): the disc as they leave it (centres within about 0.01 px of the
+/// final round's; enough to track it and find its dots), and the plan of its final round over
+/// each pixel's area, which `profile_finish` carries out — with the same dots masked, or with
+/// more. Why split: the analysis's first pass needs the discs only to find dots and spins, and
+/// its second pass fits every disc again with the dots those put on its rim masked; the final
+/// round started from where the first pass's box rounds stopped costs a third of a fit from
+/// the edge points (docs/performance.md, session 38).
+pub fn profile_plan(
     img: &GreyImage,
     view: &View,
     start: &CircleFit,
@@ -68,30 +76,45 @@ fn fit_one(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
     radius_px: Option<f64>,
-) -> Option<CircleFit> {
+) -> Option<(CircleFit, ProfilePlan)> {
     let near_other = |u: f64, v: f64| {
         other.is_some_and(|(oc, or)| dist(u - oc[0], v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
     };
+    let chain_start = *start;
     let start = CircleFit {
         radius: radius_px.unwrap_or(start.radius),
         ..*start
     };
-    let min_sectors = if radius_px.is_some() { 12 } else { 20 };
-    let fit = |discs: [&CircleFit; 1], inner_px: f64, max_move_px: f64| {
-        let pixels = ring_pixels(img, view, &discs, dots, near_other, min_sectors, inner_px)?;
-        fit_grey_levels::<11, 1>(
+    let min_sectors = min_sectors(radius_px);
+    let fit = |disc: &CircleFit, inner_px: f64, max_move_px: f64| {
+        let pixels = ring_pixels(img, view, &[disc], dots, near_other, min_sectors, inner_px)?;
+        // The refit on the ring reaching past a blurred edge models the shading's rise
+        // under it as blurred (`model::blurred_rise`); the first, on the usual band, as
+        // the step times the shading, which a sharp edge makes exact and which only has
+        // to find how blurred the edge is.
+        let convolved = inner_px > PROFILE_BAND_PX;
+        let f = fit_grey_levels::<11, 1>(
             &pixels,
-            discs,
+            [disc],
             background,
             Layering::Apart,
             radius_px,
             max_move_px,
-            // The refit on the ring reaching past a blurred edge models the shading's rise
-            // under it as blurred (`model::blurred_rise`); the first, on the usual band, as
-            // the step times the shading, which a sharp edge makes exact and which only has
-            // to find how blurred the edge is.
-            inner_px > PROFILE_BAND_PX,
-        )
+            convolved,
+            Rounds::Box,
+        )?;
+        let plan = ProfilePlan {
+            start: chain_start,
+            disc: *disc,
+            inner_px,
+            max_move_px,
+            radius_px,
+            other,
+            background,
+            kept: f.kept?,
+            fallback: None,
+        };
+        Some((f.discs[0], f.widths, plan))
     };
     // A fit that settled more than a pixel from its start may still have found the disc: an
     // edge-point start on a blurred sphere lit from one side lies up to 1.5 px towards the lamp
@@ -107,30 +130,141 @@ fn fit_one(
     } else {
         RESTART_REACH_PX
     };
-    let ([reached], reached_widths) = fit([&start], PROFILE_BAND_PX, reach_px)?;
+    let reached = fit(&start, PROFILE_BAND_PX, reach_px)?;
     let moved = dist(
-        reached.centre[0] - start.centre[0],
-        reached.centre[1] - start.centre[1],
+        reached.0.centre[0] - start.centre[0],
+        reached.0.centre[1] - start.centre[1],
     );
-    let ([first], widths) = if moved <= 1.0 {
-        ([reached], reached_widths)
+    let first = if moved <= 1.0 {
+        reached
     } else {
         let from_there = CircleFit {
-            centre: reached.centre,
-            radius: reached.radius,
+            centre: reached.0.centre,
+            radius: reached.0.radius,
             ..start
         };
-        fit([&from_there], PROFILE_BAND_PX, RESTART_AGREE_PX)?
+        fit(&from_there, PROFILE_BAND_PX, RESTART_AGREE_PX)?
     };
-    let Some(inner_px) = blurred_inner_band(&widths) else {
-        return Some(first);
+    let Some(inner_px) = blurred_inner_band(&first.1) else {
+        return Some((first.0, first.2));
     };
     let again = CircleFit {
-        centre: first.centre,
-        radius: first.radius,
+        centre: first.0.centre,
+        radius: first.0.radius,
         ..start
     };
-    Some(fit([&again], inner_px, 1.0).map_or(first, |([f], _)| f))
+    // Where the refit fails, in its box rounds here or in its final round (`profile_finish`),
+    // the first fit stands.
+    Some(match fit(&again, inner_px, 1.0) {
+        Some((disc, _, plan)) => (
+            disc,
+            ProfilePlan {
+                fallback: Some(Box::new(first.2)),
+                ..plan
+            },
+        ),
+        None => (first.0, first.2),
+    })
+}
+
+/// The final round of a lone disc's grey-level fit (`profile_plan`), over each pixel's area,
+/// with `dots` masked: from where the plan's box rounds stopped where none of `dots` falls on
+/// the plan's ring (the fit `profile_fit` would give with these dots, to the bit); else the
+/// whole fit again from the plan's start with them masked. Why not the final round from the
+/// plan wherever: started where a fit of the unmasked ring settled, the rounds that find the
+/// dots take their scale from smaller residuals and drop other pixels; tried in session 38, it
+/// put the centres of the side-lit and cluttered looks 17 % further off (docs/performance.md).
+/// None where the fit does not settle within the plan's reach of its start, or too little of
+/// the ring is left.
+pub fn profile_finish(
+    img: &GreyImage,
+    view: &View,
+    plan: &ProfilePlan,
+    dots: &[DotMask],
+) -> Option<CircleFit> {
+    if let Some(fit) = finish_unchanged(img, view, plan, dots) {
+        return fit;
+    }
+    let (_, again) = profile_plan(
+        img,
+        view,
+        &plan.start,
+        plan.background,
+        plan.other,
+        dots,
+        plan.radius_px,
+    )?;
+    // Its ring has these dots masked already.
+    finish_unchanged(img, view, &again, dots).flatten()
+}
+
+/// The plan's final round where none of `dots` falls on its ring (Some: the fit, or None where
+/// it does not settle); None where some do.
+fn finish_unchanged(
+    img: &GreyImage,
+    view: &View,
+    plan: &ProfilePlan,
+    dots: &[DotMask],
+) -> Option<Option<CircleFit>> {
+    let near_other = |u: f64, v: f64| {
+        plan.other
+            .is_some_and(|(oc, or)| dist(u - oc[0], v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
+    };
+    let pixels = ring_pixels(
+        img,
+        view,
+        &[&plan.disc],
+        dots,
+        near_other,
+        min_sectors(plan.radius_px),
+        plan.inner_px,
+    )
+    .filter(|pixels| pixels.len() == plan.kept.ring_len)?;
+    let fit = fit_grey_levels::<11, 1>(
+        &pixels,
+        [&plan.disc],
+        plan.background,
+        Layering::Apart,
+        plan.radius_px,
+        plan.max_move_px,
+        plan.inner_px > PROFILE_BAND_PX,
+        Rounds::AreaFrom(&plan.kept),
+    );
+    match (fit, &plan.fallback) {
+        (Some(f), _) => Some(Some(f.discs[0])),
+        (None, Some(first)) => finish_unchanged(img, view, first, dots),
+        (None, None) => Some(None),
+    }
+}
+
+/// What `profile_finish` needs of a lone disc's fit: where the whole fit started, the disc
+/// its last fit started from (the ring is gathered round it, and it must settle near it), the ring's reach inside the edge, the
+/// radius held if any, the other sphere's disc, the background, where its box rounds
+/// stopped, and what stands if its final round fails.
+#[derive(Clone, Debug)]
+pub struct ProfilePlan {
+    /// Where the whole fit started (`profile_plan`'s `start`).
+    start: CircleFit,
+    disc: CircleFit,
+    inner_px: f64,
+    max_move_px: f64,
+    radius_px: Option<f64>,
+    other: Option<([f64; 2], f64)>,
+    background: f64,
+    kept: Kept,
+    /// For a blurred disc's refit, the first fit's plan: what stands where the refit's final
+    /// round does not settle.
+    fallback: Option<Box<ProfilePlan>>,
+}
+
+/// How many of its ring's 36 sectors a lone disc's fit needs: 20, or 12 with its radius held
+/// (the radius no longer needs the ring to go round).
+fn min_sectors(radius_px: Option<f64>) -> usize {
+    if radius_px.is_some() {
+        12
+    } else {
+        20
+    }
 }
 
 /// How far from its start a lone disc's grey-level fit may settle and be tried again from
@@ -196,7 +330,9 @@ pub fn profile_fit_pair(
             None,
             1.0,
             false,
+            Rounds::All,
         )
+        .map(|f| (f.discs, f.widths))
     };
     let (first, widths) = fit(starts, PROFILE_BAND_PX)?;
     let Some(inner_px) = blurred_inner_band(&widths) else {
@@ -256,8 +392,9 @@ pub fn profile_fit_behind(
         None,
         1.0,
         false,
+        Rounds::All,
     )
-    .map(|(fit, _)| fit)
+    .map(|f| f.discs)
 }
 
 /// The narrowest crescent `profile_fit_behind` fits, in radii of the back disc.
@@ -278,4 +415,79 @@ pub fn rings_meet(a: &CircleFit, b: &CircleFit) -> bool {
 /// √ on every pixel of every ring.
 fn dist(dx: f64, dy: f64) -> f64 {
     (dx * dx + dy * dy).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::fit_edges;
+    use super::super::tests::{dotless_direct_view, render_pair};
+    use super::*;
+    use nalgebra::Vector3;
+
+    /// The analysis's first pass stops its grey-level fits after the box rounds and its second
+    /// finishes them (`profile_plan`, `profile_finish`): where the second pass masks no new
+    /// dot, the final round from the kept state is the whole fit to the bit, for the final
+    /// round's work alone; where it masks some, the fit is made again with them.
+    #[test]
+    fn a_planned_fit_finishes_as_the_whole_fit_would() {
+        let (view, r_px, cfg) = dotless_direct_view(64, 64, [31.3, 31.6]);
+        let far = Vector3::new(40.0, 40.0, 0.0);
+        let (img, truth) = render_pair(&view, 64, 64, [Vector3::zeros(), far], &cfg, 11);
+        let t = truth[0];
+        let e = fit_edges(&img, &view, [t[0] + 0.3, t[1] - 0.2], r_px, 30.0, None)
+            .expect("edge fit")
+            .0;
+        let pixels = ring_pixels(&img, &view, &[&e], &[], |_, _| false, 20, PROFILE_BAND_PX)
+            .expect("the ring");
+        let fit = |rounds| {
+            fit_grey_levels::<11, 1>(
+                &pixels,
+                [&e],
+                30.0,
+                Layering::Apart,
+                None,
+                2.5,
+                false,
+                rounds,
+            )
+            .expect("the disc is fitted")
+        };
+        crate::analysis::stages::take_model_samples();
+        let whole = fit(Rounds::All);
+        let whole_work = crate::analysis::stages::take_model_samples();
+        let boxed = fit(Rounds::Box);
+        let kept = boxed.kept.expect("the box rounds keep their state");
+        crate::analysis::stages::take_model_samples();
+        let finished = fit(Rounds::AreaFrom(&kept));
+        let finish_work = crate::analysis::stages::take_model_samples();
+        let (w, f) = (whole.discs[0], finished.discs[0]);
+        assert_eq!(
+            (w.centre, w.radius, w.centre_sigma),
+            (f.centre, f.radius, f.centre_sigma),
+            "finished from the box rounds, not the whole fit"
+        );
+        assert!(
+            finish_work < whole_work,
+            "the final round alone cost {finish_work} of the whole fit's {whole_work} evaluations"
+        );
+        // Through the public pair: no dot masked in either pass.
+        let (_, plan) = profile_plan(&img, &view, &e, 30.0, None, &[], None).expect("planned");
+        let done = profile_finish(&img, &view, &plan, &[]).expect("finished");
+        assert_eq!(
+            done.centre,
+            profile_fit(&img, &view, &e, 30.0, None, &[])
+                .unwrap()
+                .centre
+        );
+        // A dot masked on the rim in the second pass: fitted again with it, as a whole fit with
+        // it masked from the start would be.
+        let dot = [DotMask::around([t[0] + r_px, t[1]], 1.0)];
+        let again = profile_finish(&img, &view, &plan, &dot).expect("finished with a dot");
+        let direct = profile_fit(&img, &view, &e, 30.0, None, &dot).expect("fitted with a dot");
+        assert_eq!(again.centre, direct.centre);
+        assert_ne!(
+            again.centre, done.centre,
+            "the mask changed nothing: a vacuous test"
+        );
+    }
 }
