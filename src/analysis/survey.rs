@@ -19,14 +19,12 @@ pub fn measure(
         inner: src,
         backdrop,
     };
-    let (obs, _) = tracking::measure_all(
-        src,
-        &views,
-        cfg,
-        &DotMasks::new(),
-        &tracking::FitMemo::default(),
-        &mut |_, _| {},
-    )?;
+    // One pass, so its fits are final ones (not the first pass's, stopped after their box
+    // rounds for a second to finish).
+    let memo = tracking::FitMemo::default();
+    memo.start_second_pass();
+    let (obs, _) =
+        tracking::measure_all(src, &views, cfg, &DotMasks::new(), &memo, &mut |_, _| {})?;
     Ok((views, obs))
 }
 

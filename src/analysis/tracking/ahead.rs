@@ -119,7 +119,8 @@ impl FitMemo {
         d
     }
 
-    /// From now on the fits asked for are final (the second pass's).
+    /// From now on the fits asked for are final (the second pass's, or a lone pass's:
+    /// `survey::measure`).
     pub fn start_second_pass(&self) {
         self.second.store(true, Ordering::SeqCst);
     }
