@@ -36,8 +36,9 @@ pub(super) enum Layering {
 /// P = 1 + 10·N parameters: the background, then per disc [cx, cy, R, s, a, b, c₁, c₂, a₁, a₂]
 /// (`DISC_PARAMS`); `layering`
 /// says whether two discs' terms add or one hides the other. Each disc must settle within
-/// `max_move_px` of its start, and its radius within a pixel of the start's. Returns the discs
-/// and their fitted edge widths s, px.
+/// `max_move_px` of its start, and its radius within a pixel of the start's. `rounds`: all of
+/// them, the box rounds only (then the result keeps what the final round needs), or the final
+/// round only from such a kept state. Returns the discs and their fitted edge widths s, px.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fit_grey_levels<const P: usize, const N: usize>(
     pixels: &[RingPixel],
@@ -529,14 +530,25 @@ where
             ..**st
         };
     }
-    let kept = (rounds == Rounds::Box).then(|| Kept {
-        ring_len: pixels.len(),
-        p: p.iter().copied().collect(),
-        rejected: pixels
+    // The pixels kept are those given, in order, less the ones dropped: one walk finds these.
+    let kept = (rounds == Rounds::Box).then(|| {
+        let mut left = keep.iter().peekable();
+        let rejected = pixels
             .iter()
-            .filter(|q| !keep.iter().any(|k| k.u == q.u && k.v == q.v))
+            .filter(|q| {
+                let kept = left.peek().is_some_and(|k| k.u == q.u && k.v == q.v);
+                if kept {
+                    left.next();
+                }
+                !kept
+            })
             .map(|q| [q.u as i32, q.v as i32])
-            .collect(),
+            .collect();
+        Kept {
+            ring_len: pixels.len(),
+            p: p.iter().copied().collect(),
+            rejected,
+        }
     });
     Some(Fitted {
         discs: out,
