@@ -389,17 +389,10 @@ fn observations_once(
     // An axis one phase did not measure is taken from the others' momentum where the masses are
     // known (`phases::keep_common_axes`).
     let masses_known = momentum_ok.then_some(masses);
+    let fits_at =
+        |split: f64| fit_all(&obs, &views, split, 0.5 * period, g, min_side, masses_known);
     for _ in 0..8 {
-        let fits = fit_all(
-            &obs,
-            &views,
-            split,
-            split,
-            0.5 * period,
-            g,
-            min_side,
-            masses_known,
-        );
+        let fits = fits_at(split);
         for (k, side) in fits.iter().enumerate() {
             let n = side.axes[0].map(|l| l.n).unwrap_or(0);
             if n < min_side {
@@ -434,16 +427,7 @@ fn observations_once(
         }
     }
     // Final fits referenced at the impact time, so p0 and v are the state at impact.
-    let fits = fit_all(
-        &obs,
-        &views,
-        split,
-        split,
-        0.5 * period,
-        g,
-        min_side,
-        masses_known,
-    );
+    let fits = fits_at(split);
     let mut warnings = input_warnings;
     warnings.extend(renamed);
     warnings.extend(hidden_notes);

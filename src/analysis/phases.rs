@@ -391,13 +391,11 @@ pub(super) fn free_flight(
     kept
 }
 
-/// The four ballistic fits for a given split (an axis one phase lacks taken from the others'
-/// momentum where `masses` are known, `keep_common_axes`).
-#[allow(clippy::too_many_arguments)]
+/// The four ballistic fits for a given split, referenced at it (an axis one phase lacks taken
+/// from the others' momentum where `masses` are known, `keep_common_axes`).
 pub(super) fn fit_all(
     obs: &[FrameObs],
     views: &[View],
-    t_ref: f64,
     split: f64,
     guard: f64,
     g: f64,
@@ -409,7 +407,7 @@ pub(super) fn fit_all(
     // it is not, so which frames a phase holds does not change.
     let mut fits = [0, 1, 2, 3].map(|k| {
         let (series, floor, weights) = series_and_sigma(obs, views, k % 2, &ph[k]);
-        SideFit::fit_weighted(&series, &weights, t_ref, g, floor)
+        SideFit::fit_weighted(&series, &weights, split, g, floor)
     });
     keep_common_axes(&mut fits, masses);
     fits

@@ -80,32 +80,22 @@ pub fn refine(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
 ) -> Option<CircleFit> {
-    refine_noting_backdrop(img, view, rough, radius_px, background, other, dots).map(|(f, _)| f)
-}
-
-/// `refine`, and whether a static backdrop hid part of the edge: then the edge points the fit
-/// started from are few and may belong to the part of the disc brighter than the backdrop, so
-/// a start from elsewhere (the sphere's track) is worth a try (`tracking`).
-pub fn refine_noting_backdrop(
-    img: &GreyImage,
-    view: &View,
-    rough: [f64; 2],
-    radius_px: f64,
-    background: f64,
-    other: Option<([f64; 2], f64)>,
-    dots: &[DotMask],
-) -> Option<(CircleFit, bool)> {
-    let (f, hidden) = fit_edges(img, view, rough, radius_px, background, other)?;
-    match profile_fit(img, view, &f, background, other, dots) {
-        Some(p) => Some((p, hidden)),
-        None if hidden => None,
-        None => Some((f, false)),
+    let r = refine_plan(img, view, rough, radius_px, background, other, dots)?;
+    let Some(plan) = r.plan else {
+        return Some(r.fit);
+    };
+    match profile_finish(img, view, &plan, dots) {
+        Some(f) => Some(f),
+        None if r.hidden => None,
+        None => Some(r.edge),
     }
 }
 
-/// `refine_noting_backdrop` as far as the grey-level fit's box rounds go (`profile_plan`):
-/// what it gives now, and what the fit's final round needs (`profile_finish`). None where
-/// `refine_noting_backdrop` gives none.
+/// `refine` as far as the grey-level fit's box rounds go (`profile_plan`): what it gives now,
+/// whether a static backdrop hid part of the edge (then the edge points the fit started from
+/// are few and may belong to the part of the disc brighter than the backdrop, so a start from
+/// elsewhere, the sphere's track, is worth a try: `tracking`), and what the fit's final round
+/// needs (`profile_finish`). None where `refine` gives none.
 pub fn refine_plan(
     img: &GreyImage,
     view: &View,
@@ -134,8 +124,8 @@ pub fn refine_plan(
 }
 
 /// What `refine_plan` gives: the fit as far as it went, whether a static backdrop hid part of
-/// the edge, the edge-point fit (what `refine_noting_backdrop` falls back to where the
-/// grey-level fit fails unhidden), and the grey-level fit's final round if it is still to do.
+/// the edge, the edge-point fit (what `refine` falls back to where the grey-level fit fails
+/// unhidden), and the grey-level fit's final round if it is still to do.
 #[derive(Clone, Debug)]
 pub struct Refined {
     pub fit: CircleFit,

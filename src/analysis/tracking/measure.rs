@@ -21,7 +21,7 @@ use crate::config::Config;
 #[derive(Clone, Copy, Debug)]
 pub(super) enum BlobFit {
     /// The fit, and whether a static backdrop hid part of the disc's edge
-    /// (`refine_noting_backdrop`).
+    /// (`circle::refine_plan`).
     Fitted(CircleFit, bool),
     TooFewEdgePoints,
     ClippedNotFitted,
