@@ -47,7 +47,7 @@ use geometry::{View, ViewKind};
 use kinematics::{derive, Bodies, ImpactError, SideFit, Spins, V3};
 use report::*;
 use rotation::SpinFit;
-use tracking::{DotMasks, FrameObs};
+use tracking::{FrameObs, SecondPass};
 
 use calibration::calibrate_mirror;
 use phases::{fit_all, flight_phases, phases_missing_axis, relift_on_trajectories};
@@ -198,10 +198,14 @@ pub fn analyze_detailed(
     // Two passes over the frames, each counted as half of the progress: the first finds the
     // markers and spins, the second measures the circles to the end, without the dots that the
     // spins put on each rim.
-    let (obs, unmeasured) =
-        tracking::measure_all(src, &views, cfg, &DotMasks::new(), &memo, &mut |i, n| {
-            progress(i / 2, n)
-        })?;
+    let (obs, unmeasured) = tracking::measure_all(
+        src,
+        &views,
+        cfg,
+        &SecondPass::default(),
+        &memo,
+        &mut |i, n| progress(i / 2, n),
+    )?;
     let (warnings, frames_dropped) = (src.warnings(), src.frames_dropped());
     let input = || Input {
         info: info.clone(),
@@ -214,12 +218,15 @@ pub fn analyze_detailed(
     let first = stages::timed(stages::Stage::Fits, || {
         observations_once(input(), obs, unmeasured, views.clone(), cfg)
     })?;
-    let dots = rim_dots(&first.1, cfg);
+    let pass = SecondPass {
+        dots: rim_dots(&first.1, cfg),
+        radii: radius_misfit::held_radii(&first.1.obs),
+    };
     // The first pass's grey-level fits stopped after their box rounds: the second finishes
     // them, with the rim dots masked where there are any.
     stages::set_pass(1);
     memo.start_second_pass();
-    let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, &dots, &memo, &mut |i, n| {
+    let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, &pass, &memo, &mut |i, n| {
         progress((n + i) / 2, n)
     })?;
     let first_pass_spins: [Option<V3>; 4] = [0, 1, 2, 3].map(|k| {

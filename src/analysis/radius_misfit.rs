@@ -20,7 +20,8 @@
 //! Same 190 recordings, every centre and axis: 58.5 % → 69.5 % within ±1σ, 0.72 % → 0.20 %
 //! beyond 5σ (defocused looks 40 % → 61 %); the centres themselves are unchanged.
 
-use super::tracking::FrameObs;
+use super::circle::HeldRadius;
+use super::tracking::{FrameObs, HeldRadii};
 
 /// Frames of the same sphere in the same view on each side of a frame whose radii give the
 /// radius it is compared with: enough that a run of misfits near the impact (a few frames)
@@ -33,7 +34,44 @@ const NEIGHBOURS: usize = 10;
 /// are left to `overlap`, which checks them against the other view; diameters not measured
 /// (centres digitised elsewhere) are left as they are.
 pub(super) fn widen(obs: &mut [FrameObs]) {
+    for (k, s, vi, _, stray_px) in strays(obs) {
+        if let Some(m) = obs[k].spheres[s][vi].as_mut() {
+            m.radius_stray_px = stray_px;
+            let add = 0.5 * stray_px * stray_px;
+            for sigma in m.sigma_px.iter_mut() {
+                *sigma = (*sigma * *sigma + add).sqrt();
+            }
+        }
+    }
+}
+
+/// The first pass's radii as the second holds them on blurred discs (`circle::HeldRadius`): for
+/// each measured disc seen whole, the median of its sphere's radii in that view over the frames
+/// round it, and its own stray from that — what `widen` compares it with.
+pub(super) fn held_radii(obs: &[FrameObs]) -> HeldRadii {
+    let mut out = HeldRadii::new();
+    for (k, s, vi, median_px, stray_px) in strays(obs) {
+        let Some(m) = obs[k].spheres[s][vi].as_ref() else {
+            continue;
+        };
+        out.entry((obs[k].index as usize, vi))
+            .or_default()
+            .push(HeldRadius {
+                centre_px: m.centre_px,
+                radius_px: 0.5 * median_px,
+                stray_px,
+            });
+    }
+    out
+}
+
+/// Per measured disc seen whole (`obs` index, sphere, view): the median of its sphere's
+/// diameters in that view over `NEIGHBOURS` frames on each side, px, and its radius's stray
+/// from that median, px. Discs the other sphere hides in part and diameters not measured are
+/// left out, of the medians too.
+fn strays(obs: &[FrameObs]) -> Vec<(usize, usize, usize, f64, f64)> {
     let n_views = obs.iter().map(|f| f.spheres[0].len()).max().unwrap_or(0);
+    let mut out = Vec::new();
     for s in 0..2 {
         for vi in 0..n_views {
             let seen: Vec<(usize, f64)> = obs
@@ -48,26 +86,16 @@ pub(super) fn widen(obs: &mut [FrameObs]) {
             if seen.len() < 3 {
                 continue;
             }
-            let strays: Vec<(usize, f64)> = (0..seen.len())
-                .map(|i| {
-                    let lo = i.saturating_sub(NEIGHBOURS);
-                    let hi = (i + NEIGHBOURS + 1).min(seen.len());
-                    let mut window: Vec<f64> = seen[lo..hi].iter().map(|x| x.1).collect();
-                    let median = median(&mut window);
-                    (seen[i].0, 0.5 * (seen[i].1 - median))
-                })
-                .collect();
-            for (k, stray_px) in strays {
-                if let Some(m) = obs[k].spheres[s][vi].as_mut() {
-                    m.radius_stray_px = stray_px;
-                    let add = 0.5 * stray_px * stray_px;
-                    for sigma in m.sigma_px.iter_mut() {
-                        *sigma = (*sigma * *sigma + add).sqrt();
-                    }
-                }
+            for i in 0..seen.len() {
+                let lo = i.saturating_sub(NEIGHBOURS);
+                let hi = (i + NEIGHBOURS + 1).min(seen.len());
+                let mut window: Vec<f64> = seen[lo..hi].iter().map(|x| x.1).collect();
+                let median = median(&mut window);
+                out.push((seen[i].0, s, vi, median, 0.5 * (seen[i].1 - median)));
             }
         }
     }
+    out
 }
 
 /// The median of `values` (reordered), the mean of the middle two for an even count.

@@ -2,7 +2,7 @@
 //! fits that follow, and the whole blobs each view shows (their positions and sizes).
 
 use super::geometry::{self, View};
-use super::tracking::{self, DotMasks, FrameObs};
+use super::tracking::{self, FrameObs, SecondPass};
 use super::{backdrop, detect, image, AnalysisError, FrameSource};
 use crate::config::Config;
 
@@ -23,8 +23,14 @@ pub fn measure(
     // rounds for a second to finish).
     let memo = tracking::FitMemo::default();
     memo.start_second_pass();
-    let (obs, _) =
-        tracking::measure_all(src, &views, cfg, &DotMasks::new(), &memo, &mut |_, _| {})?;
+    let (obs, _) = tracking::measure_all(
+        src,
+        &views,
+        cfg,
+        &SecondPass::default(),
+        &memo,
+        &mut |_, _| {},
+    )?;
     Ok((views, obs))
 }
 

@@ -80,11 +80,11 @@ pub fn refine(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
 ) -> Option<CircleFit> {
-    let r = refine_plan(img, view, rough, radius_px, background, other, dots)?;
+    let r = refine_plan(img, view, rough, radius_px, background, other, dots, None)?;
     let Some(plan) = r.plan else {
         return Some(r.fit);
     };
-    match profile_finish(img, view, &plan, dots) {
+    match profile_finish(img, view, &plan, dots, None) {
         Some(f) => Some(f),
         None if r.hidden => None,
         None => Some(r.edge),
@@ -95,7 +95,8 @@ pub fn refine(
 /// whether a static backdrop hid part of the edge (then the edge points the fit started from
 /// are few and may belong to the part of the disc brighter than the backdrop, so a start from
 /// elsewhere, the sphere's track, is worth a try: `tracking`), and what the fit's final round
-/// needs (`profile_finish`). None where `refine` gives none.
+/// needs (`profile_finish`). None where `refine` gives none. `held`: see `profile_plan`.
+#[allow(clippy::too_many_arguments)]
 pub fn refine_plan(
     img: &GreyImage,
     view: &View,
@@ -104,9 +105,10 @@ pub fn refine_plan(
     background: f64,
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
+    held: Option<HeldRadius>,
 ) -> Option<Refined> {
     let (edge, hidden) = fit_edges(img, view, rough, radius_px, background, other)?;
-    match profile_plan(img, view, &edge, background, other, dots, None) {
+    match profile_plan(img, view, &edge, background, other, dots, None, held) {
         Some((fit, plan)) => Some(Refined {
             fit,
             hidden,

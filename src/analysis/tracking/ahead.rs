@@ -13,8 +13,8 @@
 //! rounds, and the second finishes each with its dots masked rather than fitting it again.
 
 use super::measure::{finish_blob, fit_blob, plan_blob, BlobFit, BlobPlan};
-use super::DotMasks;
-use crate::analysis::circle::DotMask;
+use super::SecondPass;
+use crate::analysis::circle::{DotMask, HeldRadius};
 use crate::analysis::detect::{find_blobs, levels, Blob, ViewLevels};
 use crate::analysis::geometry::View;
 use crate::analysis::image::GreyImage;
@@ -141,6 +141,7 @@ impl FitMemo {
         other: Option<([f64; 2], f64)>,
         background: f64,
         dots: &[DotMask],
+        held: &[HeldRadius],
     ) -> BlobFit {
         let key = FitKey::new(vi, b, radius_px, other);
         let kept = self
@@ -152,18 +153,19 @@ impl FitMemo {
             if let Some((f, _)) = kept {
                 return f;
             }
-            let (f, plan) = plan_blob(img, view, b, radius_px, other, background, dots);
+            let (f, plan) = plan_blob(img, view, b, radius_px, other, background, dots, held);
             if let Ok(mut m) = self.fits.lock() {
                 m.insert((i, key), (f, plan));
             }
             return f;
         }
         match kept {
-            Some((_, Some(plan))) => finish_blob(img, view, &plan, dots),
+            Some((_, Some(plan))) => finish_blob(img, view, &plan, dots, held),
             // No grey-level fit was left to finish: without dots a fit now would fail as it
-            // did; with them masked it may not.
+            // did; with them masked it may not. (A held radius changes only a grey-level fit's
+            // blurred refit, which there was none of.)
             Some((f, None)) if dots.is_empty() => f,
-            _ => fit_blob(img, view, b, radius_px, other, background, dots),
+            _ => fit_blob(img, view, b, radius_px, other, background, dots, held),
         }
     }
 }
@@ -174,7 +176,7 @@ fn frame_ahead(
     i: usize,
     views: &[View],
     cfg: &Config,
-    dots: &DotMasks,
+    pass: &SecondPass,
     memo: &FitMemo,
 ) -> Ahead {
     let mut out = Ahead::default();
@@ -187,7 +189,7 @@ fn frame_ahead(
             (lv, blobs)
         });
         if radius[0] == radius[1] && blobs.len() <= 2 {
-            let view_dots: &[DotMask] = dots.get(&(i, vi)).map(Vec::as_slice).unwrap_or(&[]);
+            let view_dots = pass.dots(i, vi);
             for (j, b) in blobs.iter().enumerate().filter(|(_, b)| !b.merged) {
                 let other = (blobs.len() == 2).then(|| (blobs[1 - j].centroid, radius[0]));
                 let fit = memo.fit_blob(
@@ -200,6 +202,7 @@ fn frame_ahead(
                     other,
                     lv.background,
                     view_dots,
+                    pass.radii(i, vi),
                 );
                 out.fits.push((FitKey::new(vi, b, radius[0], other), fit));
             }
@@ -218,7 +221,7 @@ pub(super) fn chunk_ahead(
     first: usize,
     views: &[View],
     cfg: &Config,
-    dots: &DotMasks,
+    pass: &SecondPass,
     memo: &FitMemo,
     threads: usize,
     meanwhile: impl FnOnce(),
@@ -228,7 +231,7 @@ pub(super) fn chunk_ahead(
     let work = || loop {
         let k = next.fetch_add(1, Ordering::Relaxed);
         let Some(img) = imgs.get(k) else { break };
-        let a = frame_ahead(img, first + k, views, cfg, dots, memo);
+        let a = frame_ahead(img, first + k, views, cfg, pass, memo);
         if let Ok(mut d) = done.lock() {
             d[k] = Some(a);
         }

@@ -114,7 +114,7 @@ impl Tracker {
         spheres: &mut Spheres,
     ) {
         let view = &cx.views[0];
-        let dots0 = cx.dots.get(&(cx.i, 0)).map(Vec::as_slice).unwrap_or(&[]);
+        let dots0 = cx.pass.dots(cx.i, 0);
         let radius = [0, 1].map(|s| cx.cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
         let contact_mm = cx.cfg.spheres.contact_mm();
         // x of a and b as the secondary view measured them in this frame; a sphere it
@@ -145,6 +145,7 @@ impl Tracker {
                 lv,
                 cx.cfg,
                 dots0,
+                cx.pass.radii(cx.i, 0),
                 cx.blob_fit(0, view, blob, radius[s], None, lv.background, dots0),
             ) {
                 Ok((m, f)) => {

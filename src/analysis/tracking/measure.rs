@@ -4,8 +4,8 @@
 
 use super::{Measurement, ViewLevels};
 use crate::analysis::circle::{
-    profile_finish, profile_fit_at, profile_plan, refine_plan, CircleFit, DotMask, ProfilePlan,
-    Refined,
+    profile_finish, profile_fit_at, profile_plan, refine_plan, CircleFit, DotMask, HeldRadius,
+    ProfilePlan, Refined,
 };
 use crate::analysis::detect::Blob;
 use crate::analysis::geometry::View;
@@ -27,6 +27,10 @@ pub(super) enum BlobFit {
     ClippedNotFitted,
 }
 
+///
+/// `held`: the second pass's radii (`HeldRadius`), of which the one near the blob is held where
+/// its edge is blurred.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn fit_blob(
     img: &GreyImage,
     view: &View,
@@ -35,9 +39,10 @@ pub(super) fn fit_blob(
     other: Option<([f64; 2], f64)>,
     background: f64,
     dots: &[DotMask],
+    held: &[HeldRadius],
 ) -> BlobFit {
-    match plan_blob(img, view, b, radius_px, other, background, dots) {
-        (_, Some(plan)) => finish_blob(img, view, &plan, dots),
+    match plan_blob(img, view, b, radius_px, other, background, dots, held) {
+        (_, Some(plan)) => finish_blob(img, view, &plan, dots, held),
         (fit, None) => fit,
     }
 }
@@ -45,6 +50,7 @@ pub(super) fn fit_blob(
 /// `fit_blob` as far as the grey-level fits' box rounds go (`circle::profile_plan`): the fit
 /// they give, and what its final round needs (`finish_blob`), None where nothing is left to
 /// do (the fit is then final: an edge-point fit, or none).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn plan_blob(
     img: &GreyImage,
     view: &View,
@@ -53,9 +59,13 @@ pub(super) fn plan_blob(
     other: Option<([f64; 2], f64)>,
     background: f64,
     dots: &[DotMask],
+    held: &[HeldRadius],
 ) -> (BlobFit, Option<BlobPlan>) {
+    let near = HeldRadius::near(held, b.centroid);
     let refined = stages::timed(Stage::Circles, || {
-        refine_plan(img, view, b.centroid, radius_px, background, other, dots)
+        refine_plan(
+            img, view, b.centroid, radius_px, background, other, dots, near,
+        )
     });
     let Some(Refined {
         fit: f,
@@ -73,6 +83,7 @@ pub(super) fn plan_blob(
     if !b.clipped {
         let plan = plan.map(|plan| BlobPlan {
             plan,
+            centroid: b.centroid,
             counts: None,
             hidden,
             unfinished: if hidden {
@@ -91,12 +102,22 @@ pub(super) fn plan_blob(
         .lens
         .map_or(radius_px, |lens| radius_px * lens.radius_factor(f.centre));
     match stages::timed(Stage::Circles, || {
-        profile_plan(img, view, &f, background, other, dots, Some(radius_px))
+        profile_plan(
+            img,
+            view,
+            &f,
+            background,
+            other,
+            dots,
+            Some(radius_px),
+            None,
+        )
     }) {
         Some((k, plan)) => (
             BlobFit::Fitted(with_counts_of(k, &f), hidden),
             Some(BlobPlan {
                 plan,
+                centroid: b.centroid,
                 counts: Some(f),
                 hidden,
                 unfinished: BlobFit::ClippedNotFitted,
@@ -114,9 +135,11 @@ pub(super) fn finish_blob(
     view: &View,
     plan: &BlobPlan,
     dots: &[DotMask],
+    held: &[HeldRadius],
 ) -> BlobFit {
+    let near = HeldRadius::near(held, plan.centroid);
     match stages::timed(Stage::Circles, || {
-        profile_finish(img, view, &plan.plan, dots)
+        profile_finish(img, view, &plan.plan, dots, near)
     }) {
         Some(k) => BlobFit::Fitted(
             plan.counts.as_ref().map_or(k, |f| with_counts_of(k, f)),
@@ -143,6 +166,8 @@ fn with_counts_of(k: CircleFit, f: &CircleFit) -> CircleFit {
 #[derive(Clone, Debug)]
 pub(super) struct BlobPlan {
     plan: ProfilePlan,
+    /// The blob's centroid (which of the second pass's radii is this disc's: `HeldRadius::near`).
+    centroid: [f64; 2],
     counts: Option<CircleFit>,
     hidden: bool,
     unfinished: BlobFit,
@@ -199,13 +224,15 @@ pub(super) fn measure_blob(
     lv: &ViewLevels,
     cfg: &Config,
     dots: &[DotMask],
+    held: &[HeldRadius],
     fit: Option<BlobFit>,
 ) -> Result<(Measurement, CircleFit), String> {
     let name = ["a", "b"][s];
     if b.merged {
         return Err(format!("{name}: silhouettes of a and b merged"));
     }
-    let fit = fit.unwrap_or_else(|| fit_blob(img, view, b, radius_px, other, lv.background, dots));
+    let fit =
+        fit.unwrap_or_else(|| fit_blob(img, view, b, radius_px, other, lv.background, dots, held));
     let f = match fit {
         BlobFit::Fitted(f, _) => f,
         BlobFit::TooFewEdgePoints => {
@@ -294,7 +321,20 @@ pub(super) fn measure_touching(
             ..part.clone()
         };
         let other = Some((predicted[1 - s], radius_px[1 - s]));
-        measure_blob(img, view, &b, s, radius_px[s], other, lv, cfg, dots, None).ok()
+        measure_blob(
+            img,
+            view,
+            &b,
+            s,
+            radius_px[s],
+            other,
+            lv,
+            cfg,
+            dots,
+            &[],
+            None,
+        )
+        .ok()
     };
     let (a, b) = (fit(0)?, fit(1)?);
     for (s, f) in [&a.1, &b.1].iter().enumerate() {

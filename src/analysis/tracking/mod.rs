@@ -2,7 +2,7 @@
 //! sub-pixel circle fit, and the measurements are labelled a or b (a has the smaller world x, as
 //! the report contract says). What cannot be measured is listed with the reason.
 
-use super::circle::{profile_fit_pair, rings_meet, CircleFit, DotMask};
+use super::circle::{profile_fit_pair, rings_meet, CircleFit, DotMask, HeldRadius};
 use super::detect::{find_blobs, levels, Blob, ViewLevels};
 use super::geometry::View;
 use super::image::GreyImage;
@@ -97,6 +97,30 @@ fn world_x(view: &View, px: [f64; 2]) -> f64 {
 /// those pixels out. Empty on the first pass, which is what finds the markers and spins.
 pub type DotMasks = HashMap<(usize, usize), Vec<DotMask>>;
 
+/// Each sphere's radius as the first pass's frames round it show it, by (frame index, view
+/// index): a blurred disc's fit holds it (`circle::HeldRadius`). Empty on the first pass.
+pub type HeldRadii = HashMap<(usize, usize), Vec<HeldRadius>>;
+
+/// What the second pass measures with that the first did not know: the dots on each rim and
+/// each sphere's radius from the frames round it. Empty (`default`) on the first pass.
+#[derive(Clone, Debug, Default)]
+pub struct SecondPass {
+    pub dots: DotMasks,
+    pub radii: HeldRadii,
+}
+
+impl SecondPass {
+    /// The dots of frame `i`'s view `vi`.
+    fn dots(&self, i: usize, vi: usize) -> &[DotMask] {
+        self.dots.get(&(i, vi)).map(Vec::as_slice).unwrap_or(&[])
+    }
+
+    /// The radii held in frame `i`'s view `vi`.
+    fn radii(&self, i: usize, vi: usize) -> &[HeldRadius] {
+        self.radii.get(&(i, vi)).map(Vec::as_slice).unwrap_or(&[])
+    }
+}
+
 pub use walk::measure_all;
 mod held;
 
@@ -107,7 +131,7 @@ struct FrameCtx<'a> {
     img: &'a GreyImage,
     views: &'a [View],
     cfg: &'a Config,
-    dots: &'a DotMasks,
+    pass: &'a SecondPass,
     /// Fits made without dot masks (the first pass's, in the second).
     memo: &'a FitMemo,
     /// What was done for this frame ahead, on other threads.
@@ -133,7 +157,16 @@ impl FrameCtx<'_> {
         }
         self.ahead.fit(vi, b, radius_px, other).or_else(|| {
             Some(self.memo.fit_blob(
-                self.i, vi, self.img, view, b, radius_px, other, background, dots,
+                self.i,
+                vi,
+                self.img,
+                view,
+                b,
+                radius_px,
+                other,
+                background,
+                dots,
+                self.pass.radii(self.i, vi),
             ))
         })
     }
@@ -255,7 +288,7 @@ impl Tracker {
         deferred: &mut Option<(Blob, ViewLevels)>,
         primary_lone: &mut Option<(Blob, ViewLevels)>,
     ) {
-        let dots = cx.dots.get(&(cx.i, vi)).map(Vec::as_slice).unwrap_or(&[]);
+        let dots = cx.pass.dots(cx.i, vi);
         let radius = [0, 1].map(|s| cx.cfg.spheres.sphere(s).0 / 2.0 * view.px_per_mm);
         let r_mean = 0.5 * (radius[0] + radius[1]);
         let (lv, blobs) = match cx.ahead.detected(vi) {
@@ -471,7 +504,10 @@ impl Tracker {
                     fit = Some(BlobFit::Fitted(f, true));
                 }
             }
-            match measure_blob(cx.img, view, b, s, radius[s], other, &lv, cx.cfg, dots, fit) {
+            let held = cx.pass.radii(cx.i, vi);
+            match measure_blob(
+                cx.img, view, b, s, radius[s], other, &lv, cx.cfg, dots, held, fit,
+            ) {
                 Ok((m, f)) => {
                     fitted[s] = Some(f);
                     spheres[s][vi] = Some(m);

@@ -101,7 +101,7 @@ impl Tracker {
             x_mm,
             depth_mm: depths(cx, spheres, oi, view),
         };
-        let dots = cx.dots.get(&(cx.i, 0)).map(Vec::as_slice).unwrap_or(&[]);
+        let dots = cx.pass.dots(cx.i, 0);
         let before = self.unmeasured.len();
         if self.split_silhouette(cx, 0, view, lv, dots, blob, &other, spheres) {
             let own = self.unmeasured.split_off(before);

@@ -3,7 +3,7 @@
 //! in order (`ahead`), one frame after another with one thread.
 
 use super::ahead::{self, FitMemo};
-use super::{DotMasks, FrameCtx, FrameObs, Tracker};
+use super::{FrameCtx, FrameObs, SecondPass, Tracker};
 use crate::analysis::geometry::View;
 use crate::analysis::image::GreyImage;
 use crate::analysis::report::Unmeasured;
@@ -18,7 +18,7 @@ pub fn measure_all(
     source: &mut dyn FrameSource,
     views: &[View],
     cfg: &Config,
-    dots: &DotMasks,
+    pass: &SecondPass,
     memo: &FitMemo,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Vec<FrameObs>, Vec<Unmeasured>), AnalysisError> {
@@ -59,7 +59,7 @@ pub fn measure_all(
                         img,
                         views,
                         cfg,
-                        dots,
+                        pass,
                         memo,
                         ahead: ahead.get(k).unwrap_or(&none),
                     };
@@ -87,7 +87,7 @@ pub fn measure_all(
                 read(source, &mut cur, &mut cur_meta, first)?;
             }
         } else {
-            let mut cur_ahead = ahead::chunk_ahead(&cur, 0, views, cfg, dots, memo, threads, || {});
+            let mut cur_ahead = ahead::chunk_ahead(&cur, 0, views, cfg, pass, memo, threads, || {});
             let (mut next, mut next_meta) = (Vec::new(), Vec::new());
             loop {
                 let next_first = first + cur.len();
@@ -97,7 +97,7 @@ pub fn measure_all(
                 }
                 read(source, &mut next, &mut next_meta, next_first)?;
                 let next_ahead =
-                    ahead::chunk_ahead(&next, next_first, views, cfg, dots, memo, threads, || {
+                    ahead::chunk_ahead(&next, next_first, views, cfg, pass, memo, threads, || {
                         track(&cur, &cur_meta, &cur_ahead, first)
                     });
                 std::mem::swap(&mut cur, &mut next);

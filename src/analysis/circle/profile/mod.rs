@@ -40,8 +40,8 @@ pub fn profile_fit(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
 ) -> Option<CircleFit> {
-    let (_, plan) = profile_plan(img, view, start, background, other, dots, None)?;
-    profile_finish(img, view, &plan, dots)
+    let (_, plan) = profile_plan(img, view, start, background, other, dots, None, None)?;
+    profile_finish(img, view, &plan, dots, None)
 }
 
 /// `profile_fit` with the disc's radius held at `radius_px`: for a disc cut by the view's
@@ -56,8 +56,17 @@ pub fn profile_fit_known_radius(
     dots: &[DotMask],
     radius_px: f64,
 ) -> Option<CircleFit> {
-    let (_, plan) = profile_plan(img, view, start, background, other, dots, Some(radius_px))?;
-    profile_finish(img, view, &plan, dots)
+    let (_, plan) = profile_plan(
+        img,
+        view,
+        start,
+        background,
+        other,
+        dots,
+        Some(radius_px),
+        None,
+    )?;
+    profile_finish(img, view, &plan, dots, None)
 }
 
 /// A lone disc's grey-level fit as far as its box rounds go (`profile_fit`, its radius held at
@@ -68,6 +77,9 @@ pub fn profile_fit_known_radius(
 /// its second pass fits every disc again with the dots those put on its rim masked; the final
 /// round started from where the first pass's box rounds stopped costs a third of a fit from
 /// the edge points (docs/performance.md, session 38).
+///
+/// `held`: where the edge is found blurred, the refit holds the radius at it (`HeldRadius`).
+#[allow(clippy::too_many_arguments)]
 pub fn profile_plan(
     img: &GreyImage,
     view: &View,
@@ -76,6 +88,7 @@ pub fn profile_plan(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
     radius_px: Option<f64>,
+    held: Option<HeldRadius>,
 ) -> Option<(CircleFit, ProfilePlan)> {
     let near_other = |u: f64, v: f64| {
         other.is_some_and(|(oc, or)| dist(u - oc[0], v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
@@ -86,7 +99,8 @@ pub fn profile_plan(
         ..*start
     };
     let min_sectors = min_sectors(radius_px);
-    let fit = |disc: &CircleFit, inner_px: f64, max_move_px: f64| {
+    // `tie`: the radius the fit holds (`radius_px`, or on the blurred refit `held`'s).
+    let fit = |disc: &CircleFit, inner_px: f64, max_move_px: f64, tie: Option<f64>| {
         let pixels = ring_pixels(img, view, &[disc], dots, near_other, min_sectors, inner_px)?;
         // The refit on the ring reaching past a blurred edge models the shading's rise
         // under it as blurred (`model::blurred_rise`); the first, on the usual band, as
@@ -98,23 +112,25 @@ pub fn profile_plan(
             [disc],
             background,
             Layering::Apart,
-            radius_px,
+            tie,
             max_move_px,
             convolved,
             Rounds::Box,
         )?;
+        let held = held.filter(|_| radius_px.is_none() && tie.is_some());
         let plan = ProfilePlan {
             start: chain_start,
             disc: *disc,
             inner_px,
             max_move_px,
             radius_px,
+            held,
             other,
             background,
             kept: f.kept?,
             fallback: None,
         };
-        Some((f.discs[0], f.widths, plan))
+        Some((held_widened(f.discs[0], held), f.widths, plan))
     };
     // A fit that settled more than a pixel from its start may still have found the disc: an
     // edge-point start on a blurred sphere lit from one side lies up to 1.5 px towards the lamp
@@ -130,7 +146,7 @@ pub fn profile_plan(
     } else {
         RESTART_REACH_PX
     };
-    let reached = fit(&start, PROFILE_BAND_PX, reach_px)?;
+    let reached = fit(&start, PROFILE_BAND_PX, reach_px, radius_px)?;
     let moved = dist(
         reached.0.centre[0] - start.centre[0],
         reached.0.centre[1] - start.centre[1],
@@ -143,19 +159,21 @@ pub fn profile_plan(
             radius: reached.0.radius,
             ..start
         };
-        fit(&from_there, PROFILE_BAND_PX, RESTART_AGREE_PX)?
+        fit(&from_there, PROFILE_BAND_PX, RESTART_AGREE_PX, radius_px)?
     };
     let Some(inner_px) = blurred_inner_band(&first.1) else {
         return Some((first.0, first.2));
     };
+    // The refit holds the radius the frames round it show (`HeldRadius`), where it is given.
+    let tie = radius_px.or(held.map(|h| h.radius_px));
     let again = CircleFit {
         centre: first.0.centre,
-        radius: first.0.radius,
+        radius: tie.unwrap_or(first.0.radius),
         ..start
     };
     // Where the refit fails, in its box rounds here or in its final round (`profile_finish`),
     // the first fit stands.
-    Some(match fit(&again, inner_px, 1.0) {
+    Some(match fit(&again, inner_px, 1.0, tie) {
         Some((disc, _, plan)) => (
             disc,
             ProfilePlan {
@@ -176,14 +194,22 @@ pub fn profile_plan(
 /// put the centres of the side-lit and cluttered looks 17 % further off (docs/performance.md).
 /// None where the fit does not settle within the plan's reach of its start, or too little of
 /// the ring is left.
+///
+/// `held`: as for `profile_plan`; where the plan's last fit is a blurred refit that did not
+/// hold it, the whole fit again.
 pub fn profile_finish(
     img: &GreyImage,
     view: &View,
     plan: &ProfilePlan,
     dots: &[DotMask],
+    held: Option<HeldRadius>,
 ) -> Option<CircleFit> {
-    if let Some(fit) = finish_unchanged(img, view, plan, dots) {
-        return fit;
+    let held = held.filter(|_| plan.radius_px.is_none());
+    let hold_anew = held.is_some() && plan.inner_px > PROFILE_BAND_PX && plan.held != held;
+    if !hold_anew {
+        if let Some(fit) = finish_unchanged(img, view, plan, dots) {
+            return fit;
+        }
     }
     let (_, again) = profile_plan(
         img,
@@ -193,6 +219,7 @@ pub fn profile_finish(
         plan.other,
         dots,
         plan.radius_px,
+        held,
     )?;
     // Its ring has these dots masked already.
     finish_unchanged(img, view, &again, dots).flatten()
@@ -225,13 +252,13 @@ fn finish_unchanged(
         [&plan.disc],
         plan.background,
         Layering::Apart,
-        plan.radius_px,
+        plan.radius_px.or(plan.held.map(|h| h.radius_px)),
         plan.max_move_px,
         plan.inner_px > PROFILE_BAND_PX,
         Rounds::AreaFrom(&plan.kept),
     );
     match (fit, &plan.fallback) {
-        (Some(f), _) => Some(Some(f.discs[0])),
+        (Some(f), _) => Some(Some(held_widened(f.discs[0], plan.held))),
         (None, Some(first)) => finish_unchanged(img, view, first, dots),
         (None, None) => Some(None),
     }
@@ -249,12 +276,63 @@ pub struct ProfilePlan {
     inner_px: f64,
     max_move_px: f64,
     radius_px: Option<f64>,
+    /// The radius a blurred refit held (`HeldRadius`).
+    held: Option<HeldRadius>,
     other: Option<([f64; 2], f64)>,
     background: f64,
     kept: Kept,
     /// For a blurred disc's refit, the first fit's plan: what stands where the refit's final
     /// round does not settle.
     fallback: Option<Box<ProfilePlan>>,
+}
+
+/// A sphere's radius in one view as the frames round it show it: what the second pass holds a
+/// blurred disc's radius at (`profile_plan`). Why: on a defocused sphere the blur, the
+/// shading's slope, its harmonic round the disc and the dots the blur spreads over the face
+/// all explain the same few pixels, and a free radius lets the fit trade them against the
+/// centre: on eight rigs blurred by 1.0–1.2 px the centres were 0.12 px off with their dots
+/// and 0.056 without, the fits' radii swinging by tenths of a pixel from frame to frame while
+/// the sphere's does not (docs/accuracy.md, session 39). The first pass's radii of the same
+/// sphere over the frames round this one fix it far better than one frame's pixels do; their
+/// median (`radius_misfit::held_radii`) carries the model's own bias of the radius, which the
+/// sphere's known size would not (held at that, the same rigs gave 0.117 px).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeldRadius {
+    /// Where the first pass put the disc, px.
+    pub centre_px: [f64; 2],
+    /// The median of the sphere's radii in this view over the frames round this one, px.
+    pub radius_px: f64,
+    /// This frame's own first-pass radius less that median, px: the misfit a held fit no
+    /// longer shows, carried into its centre's σ as `radius_misfit` would have (`held_widened`).
+    pub stray_px: f64,
+}
+
+impl HeldRadius {
+    /// The one of `held` whose disc lies within a third of its radius of `centre` (the fit's
+    /// start), if any.
+    pub fn near(held: &[HeldRadius], centre: [f64; 2]) -> Option<HeldRadius> {
+        held.iter()
+            .filter(|h| {
+                dist(h.centre_px[0] - centre[0], h.centre_px[1] - centre[1]) < h.radius_px / 3.0
+            })
+            .min_by(|a, b| {
+                let d =
+                    |h: &HeldRadius| dist(h.centre_px[0] - centre[0], h.centre_px[1] - centre[1]);
+                d(a).total_cmp(&d(b))
+            })
+            .copied()
+    }
+}
+
+/// A fit whose radius was held at `held`'s: its centre's σ carries the first pass's stray of the
+/// radius, half its square on each axis (as `radius_misfit::widen` adds it to a free fit's).
+fn held_widened(fit: CircleFit, held: Option<HeldRadius>) -> CircleFit {
+    let Some(h) = held else { return fit };
+    let add = 0.5 * h.stray_px * h.stray_px;
+    CircleFit {
+        centre_sigma: fit.centre_sigma.map(|s| (s * s + add).sqrt()),
+        ..fit
+    }
 }
 
 /// How many of its ring's 36 sectors a lone disc's fit needs: 20, or 12 with its radius held
@@ -471,8 +549,9 @@ mod tests {
             "the final round alone cost {finish_work} of the whole fit's {whole_work} evaluations"
         );
         // Through the public pair: no dot masked in either pass.
-        let (_, plan) = profile_plan(&img, &view, &e, 30.0, None, &[], None).expect("planned");
-        let done = profile_finish(&img, &view, &plan, &[]).expect("finished");
+        let (_, plan) =
+            profile_plan(&img, &view, &e, 30.0, None, &[], None, None).expect("planned");
+        let done = profile_finish(&img, &view, &plan, &[], None).expect("finished");
         assert_eq!(
             done.centre,
             profile_fit(&img, &view, &e, 30.0, None, &[])
@@ -482,7 +561,7 @@ mod tests {
         // A dot masked on the rim in the second pass: fitted again with it, as a whole fit with
         // it masked from the start would be.
         let dot = [DotMask::around([t[0] + r_px, t[1]], 1.0)];
-        let again = profile_finish(&img, &view, &plan, &dot).expect("finished with a dot");
+        let again = profile_finish(&img, &view, &plan, &dot, None).expect("finished with a dot");
         let direct = profile_fit(&img, &view, &e, 30.0, None, &dot).expect("fitted with a dot");
         assert_eq!(again.centre, direct.centre);
         assert_ne!(
