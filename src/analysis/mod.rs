@@ -223,7 +223,8 @@ pub fn analyze_detailed(
         radii: radius_misfit::held_radii(&first.1.obs),
     };
     // The first pass's grey-level fits stopped after their box rounds: the second finishes
-    // them, with the rim dots masked where there are any.
+    // them, with the rim dots masked where there are any, and a blurred disc's radius held at
+    // its sphere's first-pass radii round that frame.
     stages::set_pass(1);
     memo.start_second_pass();
     let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, &pass, &memo, &mut |i, n| {

@@ -1,5 +1,7 @@
 //! A centre whose fitted radius strays from the radius the same sphere shows in the frames
 //! round it: the stray is a misfit of the disc's model, and it is carried into the centre's σ.
+//! After the first pass, the same medians are the radii the second holds blurred discs at
+//! (`held_radii`).
 //!
 //! Why: a sphere's imaged radius changes only slowly along its flight (perspective, the mirror's
 //! longer path), so where one frame's fit finds it a few tenths of a pixel larger or smaller than

@@ -12,8 +12,8 @@ use crate::analysis::{AnalysisError, FrameSource};
 use crate::config::Config;
 use crate::session::FrameMeta;
 
-/// Every frame measured and labelled; `memo` keeps fits made without dot masks (give the
-/// second pass the first pass's).
+/// Every frame measured and labelled, with what `pass` gives the second pass (nothing on the
+/// first); `memo` keeps the first pass's fits for the second to finish.
 pub fn measure_all(
     source: &mut dyn FrameSource,
     views: &[View],
