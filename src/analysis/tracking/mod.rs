@@ -524,8 +524,10 @@ impl Tracker {
         }
         if let [Some(fa), Some(fb)] = &fitted {
             if rings_meet(fa, fb) {
+                let radii = cx.pass.radii(cx.i, vi);
+                let held = [fa, fb].map(|f| HeldRadius::near(radii, f.centre));
                 let pair = stages::timed(Stage::Circles, || {
-                    profile_fit_pair(cx.img, view, [fa, fb], lv.background, dots)
+                    profile_fit_pair(cx.img, view, [fa, fb], lv.background, dots, held)
                 });
                 if let Some(pair) = pair {
                     for (s, f) in pair.iter().enumerate() {

@@ -36,7 +36,8 @@ pub(super) enum Layering {
 /// P = 1 + 10·N parameters: the background, then per disc [cx, cy, R, s, a, b, c₁, c₂, a₁, a₂]
 /// (`DISC_PARAMS`); `layering`
 /// says whether two discs' terms add or one hides the other. Each disc must settle within
-/// `max_move_px` of its start, and its radius within a pixel of the start's. `rounds`: all of
+/// `max_move_px` of its start, and its radius within a pixel of the start's; a disc's radius is
+/// held where `radii_px` gives it (not with `InFront`, whose radii keep their ratio). `rounds`: all of
 /// them, the box rounds only (then the result keeps what the final round needs), or the final
 /// round only from such a kept state. Returns the discs and their fitted edge widths s, px.
 #[allow(clippy::too_many_arguments)]
@@ -45,7 +46,7 @@ pub(super) fn fit_grey_levels<const P: usize, const N: usize>(
     starts: [&CircleFit; N],
     background: f64,
     layering: Layering,
-    radius_px: Option<f64>,
+    radii_px: [Option<f64>; N],
     max_move_px: f64,
     convolved: bool,
     rounds: Rounds<'_>,
@@ -139,36 +140,49 @@ where
     }
     // A disc behind another shows a crescent, which fixes its radius poorly: there the radii
     // keep the ratio of the starts (the spheres' sizes are known), as a stiff penalty on
-    // R_back − k·R_front whose gradient row is `tie_row`.
-    let tie = match layering {
-        Layering::InFront(f) if N == 2 => {
+    // R_back − k·R_front whose gradient row is one of `tie_rows`.
+    let mut ties: [Option<(usize, usize, f64)>; 2] = [None; 2];
+    if let Layering::InFront(f) = layering {
+        if N == 2 {
             let (rf, rb) = (1 + DISC_PARAMS * f + 2, 1 + DISC_PARAMS * (1 - f) + 2);
-            Some((rf, rb, starts[1 - f].radius / starts[f].radius))
+            ties[0] = Some((rf, rb, starts[1 - f].radius / starts[f].radius));
         }
-        _ => None,
-    };
-    // A lone disc of known radius (`radius_px`: one cut by the view's border, whose visible
-    // arc fixes its radius and its centre across the cut poorly together) is held at it the
-    // same way, as R − radius_px.
-    let tie = tie.or_else(|| radius_px.filter(|_| N == 1).map(|r| (usize::MAX, 3, r)));
+    }
+    // A disc of known radius (`radii_px`: a lone one cut by the view's border, whose visible
+    // arc fixes its radius and its centre across the cut poorly together; a blurred one held
+    // at its neighbours', `HeldRadius`) is held at it the same way, as R − radius.
+    if ties[0].is_none() {
+        for (k, r) in radii_px.iter().enumerate().take(2) {
+            ties[k] = r.map(|r| (usize::MAX, 1 + DISC_PARAMS * k + 2, r));
+        }
+    }
     const TIE_WEIGHT: f64 = 1e6;
-    let tie_residual = |p: &Vp<P>| {
-        tie.map_or(0.0, |(rf, rb, k)| {
-            if rf == usize::MAX {
-                p[rb] - k
-            } else {
-                p[rb] - k * p[rf]
-            }
-        })
-    };
-    let tie_row = tie.map(|(rf, rb, k)| {
-        let mut a = Vp::<P>::zeros();
-        a[rb] = 1.0;
-        if rf != usize::MAX {
-            a[rf] = -k;
+    let one_residual = |p: &Vp<P>, (rf, rb, k): (usize, usize, f64)| {
+        if rf == usize::MAX {
+            p[rb] - k
+        } else {
+            p[rb] - k * p[rf]
         }
-        a
-    });
+    };
+    // Σ of the ties' squared residuals.
+    let tie_cost = |p: &Vp<P>| {
+        ties.iter()
+            .flatten()
+            .map(|&t| one_residual(p, t).powi(2))
+            .sum::<f64>()
+    };
+    let tie_rows: Vec<((usize, usize, f64), Vp<P>)> = ties
+        .iter()
+        .flatten()
+        .map(|&(rf, rb, k)| {
+            let mut a = Vp::<P>::zeros();
+            a[rb] = 1.0;
+            if rf != usize::MAX {
+                a[rf] = -k;
+            }
+            ((rf, rb, k), a)
+        })
+        .collect();
     // Edge widths stay plausible, and a lamp gives light (b ≥ 0): with b < 0 the model has
     // other, unphysical ways to fit a band only 2.5 px deep. The bounds are kept by holding a
     // parameter that sits on one and is pushed beyond it, and by clipping the step to them
@@ -291,15 +305,15 @@ where
         let mut lambda = 1e-3;
         let mut at_trial = Vec::with_capacity(keep.len());
         let (sum_sq, mut jtj_at_p, mut jtr_at_p) = accumulate(&at_p, robust);
-        let mut c_now = sum_sq + TIE_WEIGHT * tie_residual(p).powi(2);
+        let mut c_now = sum_sq + TIE_WEIGHT * tie_cost(p);
         // JᵀJ with the tie's row, as the last iteration began (what the covariance uses).
         let mut jtj = Mp::<P>::zeros();
         for _ in 0..30 {
             jtj = jtj_at_p;
             let mut jtr = jtr_at_p;
-            if let Some(a) = &tie_row {
+            for (t, a) in &tie_rows {
                 jtj += a * a.transpose() * TIE_WEIGHT;
-                jtr -= a * (TIE_WEIGHT * tie_residual(p));
+                jtr -= a * (TIE_WEIGHT * one_residual(p, *t));
             }
             let mut accepted = false;
             // A parameter on its bound that the descent pushes beyond it is held there.
@@ -342,7 +356,7 @@ where
                 project(&mut trial);
                 evaluate(&trial, keep, area, &mut at_trial);
                 let (sum_sq, jtj_t, jtr_t) = accumulate(&at_trial, robust);
-                let c_new = sum_sq + TIE_WEIGHT * tie_residual(&trial).powi(2);
+                let c_new = sum_sq + TIE_WEIGHT * tie_cost(&trial);
                 // After a step is taken the damping falls by up to 3× if the cost fell as the
                 // quadratic model predicted (gain ρ = actual / predicted decrease near 1), and
                 // less, or rises, if it did not (Nielsen's rule). Against a fixed fall of 3×,

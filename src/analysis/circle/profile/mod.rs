@@ -112,7 +112,7 @@ pub fn profile_plan(
             [disc],
             background,
             Layering::Apart,
-            tie,
+            [tie],
             max_move_px,
             convolved,
             Rounds::Box,
@@ -252,7 +252,7 @@ fn finish_unchanged(
         [&plan.disc],
         plan.background,
         Layering::Apart,
-        plan.radius_px.or(plan.held.map(|h| h.radius_px)),
+        [plan.radius_px.or(plan.held.map(|h| h.radius_px))],
         plan.max_move_px,
         plan.inner_px > PROFILE_BAND_PX,
         Rounds::AreaFrom(&plan.kept),
@@ -287,7 +287,7 @@ pub struct ProfilePlan {
 }
 
 /// A sphere's radius in one view as the frames round it show it: what the second pass holds a
-/// blurred disc's radius at (`profile_plan`). Why: on a defocused sphere the blur, the
+/// blurred disc's radius at (`profile_plan`, `profile_fit_pair`). Why: on a defocused sphere the blur, the
 /// shading's slope, its harmonic round the disc and the dots the blur spreads over the face
 /// all explain the same few pixels, and a free radius lets the fit trade them against the
 /// centre: on eight rigs blurred by 1.0–1.2 px the centres were 0.12 px off with their dots
@@ -295,7 +295,8 @@ pub struct ProfilePlan {
 /// the sphere's does not (docs/accuracy.md, session 39). The first pass's radii of the same
 /// sphere over the frames round this one fix it far better than one frame's pixels do; their
 /// median (`radius_misfit::held_radii`) carries the model's own bias of the radius, which the
-/// sphere's known size would not (held at that, the same rigs gave 0.117 px).
+/// sphere's known size would not (held at that, the same rigs gave 0.117 px). Held: 0.099 px,
+/// and with pairs near contact held too, 0.093.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HeldRadius {
     /// Where the first pass put the disc, px.
@@ -386,42 +387,49 @@ fn edge_is_blurred(s: f64) -> bool {
 /// the bench the centres there scattered 1.5–2 times as much along that line as far from it.
 /// Only for discs that do not overlap in the view (one partly behind the other hides, and
 /// hiding does not add up); None there and where the fit does not settle.
+///
+/// `held`: each disc's, as for `profile_plan`: held where the edges are found blurred.
 pub fn profile_fit_pair(
     img: &GreyImage,
     view: &View,
     starts: [&CircleFit; 2],
     background: f64,
     dots: &[DotMask],
+    held: [Option<HeldRadius>; 2],
 ) -> Option<[CircleFit; 2]> {
     let [a, b] = starts;
     let apart = (a.centre[0] - b.centre[0]).hypot(a.centre[1] - b.centre[1]);
     if apart < a.radius + b.radius - PAIR_OVERLAP_PX {
         return None;
     }
-    let fit = |discs: [&CircleFit; 2], inner_px: f64| {
+    let fit = |discs: [&CircleFit; 2], inner_px: f64, ties: [Option<f64>; 2]| {
         let pixels = ring_pixels(img, view, &discs, dots, |_, _| false, 20, inner_px)?;
         fit_grey_levels::<21, 2>(
             &pixels,
             discs,
             background,
             Layering::Apart,
-            None,
+            ties,
             1.0,
             false,
             Rounds::All,
         )
         .map(|f| (f.discs, f.widths))
     };
-    let (first, widths) = fit(starts, PROFILE_BAND_PX)?;
+    let (first, widths) = fit(starts, PROFILE_BAND_PX, [None; 2])?;
     let Some(inner_px) = blurred_inner_band(&widths) else {
         return Some(first);
     };
+    let ties = held.map(|h| h.map(|h| h.radius_px));
     let again = [0, 1].map(|k| CircleFit {
         centre: first[k].centre,
-        radius: first[k].radius,
+        radius: ties[k].unwrap_or(first[k].radius),
         ..*starts[k]
     });
-    Some(fit([&again[0], &again[1]], inner_px).map_or(first, |(f, _)| f))
+    Some(
+        fit([&again[0], &again[1]], inner_px, ties)
+            .map_or(first, |(f, _)| [0, 1].map(|k| held_widened(f[k], held[k]))),
+    )
 }
 
 /// Two discs of one silhouette, one partly hiding the other (the mirror after an oblique
@@ -467,7 +475,7 @@ pub fn profile_fit_behind(
         starts,
         background,
         Layering::InFront(front),
-        None,
+        [None; 2],
         1.0,
         false,
         Rounds::All,
@@ -523,7 +531,7 @@ mod tests {
                 [&e],
                 30.0,
                 Layering::Apart,
-                None,
+                [None],
                 2.5,
                 false,
                 rounds,
