@@ -234,14 +234,27 @@ fn dark_spheres(frames: &[GreyImage], rect: [usize; 4]) -> bool {
         if vals.len() < 16 || steps.is_empty() {
             continue;
         }
-        vals.sort_unstable_by(f32::total_cmp);
-        let q = |p: f64| vals[((vals.len() - 1) as f64 * p).round() as usize] as f64;
-        let med = q(0.5);
-        let mid = steps.len() / 2;
-        let step_median = *steps.select_nth_unstable_by(mid, f32::total_cmp).1 as f64;
+        // Three order statistics, each selected rather than the whole view sorted (the sort
+        // was 1.5 % of the analysis of a 40-frame recording): the same elements.
+        let at = |p: f64| ((vals.len() - 1) as f64 * p).round() as usize;
+        let (lo, mid, hi) = (at(0.003), at(0.5), at(0.997));
+        let (below, med, above) = vals.select_nth_unstable_by(mid, f32::total_cmp);
+        let med = *med as f64;
+        let q_lo = if lo < mid {
+            *below.select_nth_unstable_by(lo, f32::total_cmp).1 as f64
+        } else {
+            med
+        };
+        let q_hi = if hi > mid {
+            *above.select_nth_unstable_by(hi - mid - 1, f32::total_cmp).1 as f64
+        } else {
+            med
+        };
+        let step_mid = steps.len() / 2;
+        let step_median = *steps.select_nth_unstable_by(step_mid, f32::total_cmp).1 as f64;
         // |difference of two pixels| has median 0.954·σ·√2.
         let noise = (step_median / (0.954 * std::f64::consts::SQRT_2)).max(0.5);
-        let (dark, bright) = (med - q(0.003), q(0.997) - med);
+        let (dark, bright) = (med - q_lo, q_hi - med);
         if dark > 8.0 * noise && dark > 2.0 * bright {
             votes -= 1;
         } else if bright > 8.0 * noise && bright > 2.0 * dark {
