@@ -36,10 +36,11 @@ pub(super) enum Layering {
 /// P = 1 + 10·N parameters: the background, then per disc [cx, cy, R, s, a, b, c₁, c₂, a₁, a₂]
 /// (`DISC_PARAMS`); `layering`
 /// says whether two discs' terms add or one hides the other. Each disc must settle within
-/// `max_move_px` of its start, and its radius within a pixel of the start's; a disc's radius is
-/// held where `radii_px` gives it (not with `InFront`, whose radii keep their ratio). `rounds`: all of
-/// them, the box rounds only (then the result keeps what the final round needs), or the final
-/// round only from such a kept state. Returns the discs and their fitted edge widths s, px.
+/// `max_move_px` of its start, and its radius within a pixel of the start's; a disc's radius
+/// is held where `radii_px` gives it (not with `InFront`, whose radii keep their ratio).
+/// `rounds`: all of them, the box rounds only (then the result keeps what the final round
+/// needs), or the final round only from such a kept state. Returns the discs and their fitted
+/// edge widths s, px.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fit_grey_levels<const P: usize, const N: usize>(
     pixels: &[RingPixel],

@@ -287,12 +287,12 @@ pub struct ProfilePlan {
 }
 
 /// A sphere's radius in one view as the frames round it show it: what the second pass holds a
-/// blurred disc's radius at (`profile_plan`, `profile_fit_pair`). Why: on a defocused sphere the blur, the
-/// shading's slope, its harmonic round the disc and the dots the blur spreads over the face
-/// all explain the same few pixels, and a free radius lets the fit trade them against the
-/// centre: on eight rigs blurred by 1.0–1.2 px the centres were 0.12 px off with their dots
-/// and 0.056 without, the fits' radii swinging by tenths of a pixel from frame to frame while
-/// the sphere's does not (docs/accuracy.md, session 39). The first pass's radii of the same
+/// blurred disc's radius at (`profile_plan`, `profile_fit_pair`). Why: on a defocused sphere
+/// the blur, the shading's slope, its harmonic round the disc and the dots the blur spreads
+/// over the face all explain the same few pixels, and a free radius lets the fit trade them
+/// against the centre: on eight rigs blurred by 1.0–1.2 px the centres were 0.12 px off with
+/// their dots and 0.056 without, the fits' radii swinging by tenths of a pixel from frame to
+/// frame while the sphere's does not (docs/accuracy.md, session 39). The first pass's radii of the same
 /// sphere over the frames round this one fix it far better than one frame's pixels do; their
 /// median (`radius_misfit::held_radii`) carries the model's own bias of the radius, which the
 /// sphere's known size would not (held at that, the same rigs gave 0.117 px). Held: 0.099 px,
