@@ -280,7 +280,10 @@ fn follow(
     gates: [f64; 2],
 ) -> SpinMeasurement {
     let mut out = SpinMeasurement::default();
-    for gate in gates {
+    for (i, gate) in gates.into_iter().enumerate() {
+        // Only the last gate's fit is reported; the ones before it only predict the next
+        // gate's tracking, so they need the spin, not its widened covariance.
+        let reported = i + 1 == gates.len();
         let (tracked, pairs) = tracked_pairs(obs, frames, s, method, omega, gate);
         // Whole marker tracks first: they use every sighting, also of a marker no other shares
         // a frame pair with. The pair rotations where the tracks are too few or too short, and
@@ -292,8 +295,12 @@ fn follow(
                 let first = frames.first().copied().unwrap_or(0);
                 let sources = spin_tracks::model_sources(first, s);
                 let seen = sightings(obs, &tracked);
-                let fit =
-                    spin_tracks::fit(&seen, start, sources).or_else(|| rotation::fit_spin(&pairs));
+                let fit = if reported {
+                    spin_tracks::fit(&seen, start, sources)
+                } else {
+                    spin_tracks::fit_spin_only(&seen, start)
+                };
+                let fit = fit.or_else(|| rotation::fit_spin(&pairs));
                 (fit, spin_tracks::effective_tracks(&seen))
             }
             RotationMethod::Thesis => (rotation::fit_spin(&pairs), f64::INFINITY),

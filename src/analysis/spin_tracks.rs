@@ -376,6 +376,14 @@ pub fn fit(sightings: &[Sighting], start: V3, sources: [usize; 2]) -> Option<Spi
     Some(with)
 }
 
+/// `fit`'s spin without the fits it is compared with: the same ω (and `None` where `fit`
+/// gives none), its covariance not widened. For a fit that only predicts where the markers
+/// go next (the wide gate before the narrow one, `spin::follow`): the two fits left out were
+/// two thirds of that gate's spin-fit time.
+pub fn fit_spin_only(sightings: &[Sighting], start: V3) -> Option<SpinFit> {
+    fit_with(sightings, start, Offsets::Constant)
+}
+
 /// One fit, with or without each view's constant offset (`fit` makes both and reports the
 /// first, widened by how far the second lies from it).
 fn fit_with(sightings: &[Sighting], start: V3, offsets: Offsets) -> Option<SpinFit> {
