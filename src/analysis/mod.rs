@@ -482,6 +482,10 @@ fn observations_once(
     // (`calibration::mirror_scale_sigma`), in quadrature.
     let shared_bias: [[f64; 3]; 4] = [0, 1, 2, 3].map(|k| {
         let mut stray = phases::stray_velocity(&obs, &views, k % 2, &ph[k]);
+        let drift = phases::diameter_drift_velocity(&obs, &views, k % 2, &ph[k]);
+        for (a, b) in stray.iter_mut().zip(drift) {
+            *a = a.hypot(b);
+        }
         stray[0] = stray[0].max(x_views[k].unwrap_or(0.0));
         if let Some(z) = &fits[k].axes[2] {
             stray[2] = stray[2].hypot(z.v.abs() * mirror_scale_sigma);
@@ -1194,6 +1198,48 @@ mod tests {
             shift[2] > 0.0,
             "the mirror's z has the same strays: {shift:?}"
         );
+    }
+
+    /// A phase of 30 frames whose diameters rise by 0.1 px in both views, steadily (a blurred
+    /// disc's held radius drifting along its phase): half that rise in mm/s, split over each
+    /// view's two axes, comes back as the velocity it may have moved; diameters that only
+    /// scatter give nothing.
+    #[test]
+    fn a_drift_of_the_diameters_along_a_phase_bounds_its_velocity() {
+        let cfg = Config::default_config();
+        let views = geometry::views(&cfg);
+        let dt = 1e-3;
+        let v = V3::new(400.0, -300.0, 20.0);
+        let recording = |diameter_px: &dyn Fn(usize) -> f64| -> Vec<FrameObs> {
+            (0..30)
+                .map(|k| {
+                    let p = V3::new(-20.0, 10.0, 0.0) + v * (k as f64 * dt);
+                    let mut f =
+                        frame_of_a(k, dt, [views[0].project(&p), views[1].project(&p)], 0.0);
+                    for m in f.spheres[0].iter_mut().flatten() {
+                        m.diameter_px = diameter_px(k);
+                    }
+                    f
+                })
+                .collect()
+        };
+        let frames: Vec<usize> = (0..30).collect();
+        let noise = |k: usize| if k.is_multiple_of(2) { 0.01 } else { -0.01 };
+        let still =
+            phases::diameter_drift_velocity(&recording(&|k| 13.7 + noise(k)), &views, 0, &frames);
+        assert_eq!(still, [0.0; 3], "diameters that only scatter");
+        let rising = |k: usize| 13.7 + 0.1 * k as f64 / 29.0 + noise(k);
+        let drift = phases::diameter_drift_velocity(&recording(&rising), &views, 0, &frames);
+        // 0.1 px over 29 ms, in mm at each view's scale, halved, over √2; x is the larger of
+        // the two views', y the direct view's, z the mirror's.
+        let of = |vi: usize| 0.5 * (0.1 / 29e-3 / views[vi].px_per_mm) / std::f64::consts::SQRT_2;
+        let expected = [of(0).max(of(1)), of(0), of(1)];
+        for (axis, (d, e)) in drift.iter().zip(expected).enumerate() {
+            assert!(
+                (d - e).abs() < 0.1 * e,
+                "axis {axis}: {d:.3} mm/s, expected about {e:.3}"
+            );
+        }
     }
 
     /// A dot seen before the impact is carried to a frame after it by the spin before the

@@ -2,7 +2,7 @@
 //! from it while they stay on the ballistic track), the per-axis series built from the views,
 //! the ballistic fits of the four phases, and the axes every phase measured.
 
-use super::geometry::{View, ViewKind};
+use super::geometry::{View, ViewKind, V3};
 use super::kinematics::{self, Fits, Series, SideFit};
 use super::line_fit::LineFit;
 use super::markers;
@@ -154,6 +154,86 @@ pub(super) fn stray_velocity(
         }
         (sum_sq + run * run).sqrt() / stt
     })
+}
+
+/// The fewest whole discs of a view in a phase for `diameter_drift_velocity` to fit a line
+/// through their diameters.
+const MIN_DRIFT_FRAMES: usize = 6;
+
+/// How far a drift of the disc model's misfit along the phase could move each axis's velocity
+/// of sphere `s` over `frames`, mm/s. Per view, a line through the phase's diameters, each in
+/// mm at the view's local scale where the sphere is (so perspective's own change is not
+/// counted), fitted by least squares with its slope's σ from the residuals; the part of the
+/// slope beyond twice that σ is a misfit that changes along the phase, and a centre moves by
+/// half its diameter's misfit, in a direction the fit does not say: half of it, split over the
+/// view's two axes. Why: on seed 4114 of the 190 varied-look recordings (session 40) a blurred
+/// disc's held diameter rose 0.08 px over its last 31 frames before the impact while its
+/// centre moved 0.05 px with it, smoothly; each centre's σ covered it, the strays from the
+/// rolling median (`stray_velocity`) did not see it (the median drifts along), and the line
+/// fit took it for velocity: 6σ. Discs cut by the view's border are left out (their radius is
+/// held at the nominal), as are those the other sphere partly hides.
+pub(super) fn diameter_drift_velocity(
+    obs: &[FrameObs],
+    views: &[View],
+    s: usize,
+    frames: &[usize],
+) -> [f64; 3] {
+    let mut out = [0.0f64; 3];
+    for (vi, view) in views.iter().enumerate() {
+        let points: Vec<(f64, f64)> = frames
+            .iter()
+            .map(|&k| &obs[k])
+            .filter_map(|f| {
+                let m = f.spheres[s].get(vi)?.as_ref()?;
+                // Aligned views have no 3-D place and need none: their scale is the same
+                // everywhere.
+                let p = f.position_mm[s].unwrap_or_else(V3::zeros);
+                let r = 0.5 * m.diameter_px;
+                let [u, v] = m.centre_px;
+                let whole = m.hidden_in_part.is_none()
+                    && r.is_finite()
+                    && [(u - r, v), (u + r, v), (u, v - r), (u, v + r)]
+                        .iter()
+                        .all(|&(a, b)| view.contains(a, b));
+                let (j, _) = view.local_at(&p);
+                // The local scale across the line of sight: the geometric mean of the map's
+                // two singular values.
+                let det = (j * j.transpose()).determinant();
+                (whole && det > 0.0).then(|| (f.time_s, m.diameter_px / det.sqrt().sqrt()))
+            })
+            .collect();
+        if points.len() < MIN_DRIFT_FRAMES {
+            continue;
+        }
+        let n = points.len() as f64;
+        let t_mean = points.iter().map(|p| p.0).sum::<f64>() / n;
+        let d_mean = points.iter().map(|p| p.1).sum::<f64>() / n;
+        let stt: f64 = points.iter().map(|p| (p.0 - t_mean).powi(2)).sum();
+        if stt <= 0.0 {
+            continue;
+        }
+        let slope = points
+            .iter()
+            .map(|p| (p.0 - t_mean) * (p.1 - d_mean))
+            .sum::<f64>()
+            / stt;
+        let rss: f64 = points
+            .iter()
+            .map(|p| (p.1 - d_mean - slope * (p.0 - t_mean)).powi(2))
+            .sum();
+        let slope_var = rss / (n - 2.0) / stt;
+        let excess = slope * slope - 4.0 * slope_var;
+        if excess.is_nan() || excess <= 0.0 {
+            continue;
+        }
+        let per_axis = 0.5 * excess.sqrt() / std::f64::consts::SQRT_2;
+        for (axis, o) in out.iter_mut().enumerate() {
+            if axis != view.kind.depth_axis() {
+                *o = o.max(per_axis);
+            }
+        }
+    }
+    out
 }
 
 /// The fewest frames both views must have seen a sphere in, in a phase, for their x velocities
