@@ -225,6 +225,22 @@ fn profile_fit_beats_edge_points_without_bias() {
     }
 }
 
+/// The `k`-th of the touching pairs both pair tests place: 0–2 px apart edge to edge, the line
+/// between them turning with `k`, the pair shifted by a fraction of a pixel; world mm.
+fn touching_pair(view: &View, r_px: f64, k: u64) -> [V3; 2] {
+    let kf = k as f64;
+    let gap_px = (kf * 0.53) % 2.0;
+    let sep = (2.0 * r_px + gap_px) / view.px_per_mm;
+    let angle = 1.2 + 0.05 * kf;
+    let shift = V3::new(
+        (kf * 0.37) % 1.0 / view.px_per_mm,
+        (kf * 0.61) % 1.0 / view.px_per_mm,
+        0.0,
+    );
+    let half = V3::new(angle.cos(), angle.sin(), 0.0) * (sep / 2.0);
+    [shift - half, shift + half]
+}
+
 /// Two spheres side by side with noise σ = 2, 0–2 px apart at the edge (a grazing impact's
 /// last frames in the direct view): fitted together, each centre scatters along the line
 /// between them clearly less than fitted alone with the other's side left out, without
@@ -235,17 +251,7 @@ fn touching_discs_fitted_together_keep_the_side_that_faces_the_other() {
     let (view, r_px, cfg) = dotless_direct_view(96, 64, [47.3, 31.6]);
     let (mut alone, mut together) = (Vec::new(), Vec::new());
     for k in 0..40 {
-        let kf = k as f64;
-        let gap_px = (kf * 0.53) % 2.0;
-        let sep = (2.0 * r_px + gap_px) / view.px_per_mm;
-        let angle = 1.2 + 0.05 * kf;
-        let shift = V3::new(
-            (kf * 0.37) % 1.0 / view.px_per_mm,
-            (kf * 0.61) % 1.0 / view.px_per_mm,
-            0.0,
-        );
-        let half = V3::new(angle.cos(), angle.sin(), 0.0) * (sep / 2.0);
-        let (img, truth) = render_pair(&view, 96, 64, [shift - half, shift + half], &cfg, 71 + k);
+        let (img, truth) = render_pair(&view, 96, 64, touching_pair(&view, r_px, k), &cfg, 71 + k);
         let fit = |s: usize| {
             let other = Some((truth[1 - s], r_px));
             let rough = [truth[s][0] + 0.3, truth[s][1] - 0.2];
@@ -935,16 +941,7 @@ fn blurred_discs_fitted_together_with_their_radii_held_scatter_less() {
     let mut cases = Vec::new();
     for k in 0..40 {
         let kf = k as f64;
-        let gap_px = (kf * 0.53) % 2.0;
-        let sep = (2.0 * r_px + gap_px) / view.px_per_mm;
-        let angle = 1.2 + 0.05 * kf;
-        let shift = V3::new(
-            (kf * 0.37) % 1.0 / view.px_per_mm,
-            (kf * 0.61) % 1.0 / view.px_per_mm,
-            0.0,
-        );
-        let half = V3::new(angle.cos(), angle.sin(), 0.0) * (sep / 2.0);
-        let centres = [shift - half, shift + half];
+        let centres = touching_pair(&view, r_px, k);
         let dots = [0, 1].map(|s| {
             spread_dots(8, V3::new(0.3 * kf + s as f64, 0.17 * kf, 0.05))
                 .iter()
