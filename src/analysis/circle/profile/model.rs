@@ -142,9 +142,9 @@ pub(super) fn blurred_rise(x: f64, h: f64, s: f64, r: f64, lamp: f64) -> Blurred
     let lit_limb = if lamp > 0.0 { 1.0 } else { 0.0 };
     let inv_h = 1.0 / h;
     let inv_s = 1.0 / s;
-    // The logistic L(z) = 1/(1 + e^{−z/s}), its density L(1 − L)/s and ∂L/∂s = −z·L(1 − L)/s².
-    let logistic = |z: f64| {
-        let e = (-z.abs() * inv_s).exp();
+    // The logistic L(z) = 1/(1 + e^{−z/s}), its density L(1 − L)/s and ∂L/∂s = −z·L(1 − L)/s²,
+    // from e = e^{−|z|/s}.
+    let logistic = |z: f64, e: f64| {
         let l = if z >= 0.0 {
             1.0 / (1.0 + e)
         } else {
@@ -152,6 +152,23 @@ pub(super) fn blurred_rise(x: f64, h: f64, s: f64, r: f64, lamp: f64) -> Blurred
         };
         let k = l * (1.0 - l) * inv_s;
         (l, k, -z * k * inv_s)
+    };
+    // The kernel's two ends, z ± h/2, lie on one side of zero at most nodes, where their
+    // exponentials differ by the factor e^{−h/s}: one exponential a node there instead of two
+    // (the exponentials were most of this quadrature's cost, and it is most of a blurred disc's).
+    let across = (-h * inv_s).exp();
+    let ends = |z: f64| {
+        let (hi, lo) = (z + 0.5 * h, z - 0.5 * h);
+        let (e_hi, e_lo) = if lo >= 0.0 {
+            let e = (-lo * inv_s).exp();
+            (e * across, e)
+        } else if hi <= 0.0 {
+            let e = (hi * inv_s).exp();
+            (e, e * across)
+        } else {
+            ((-hi * inv_s).exp(), (lo * inv_s).exp())
+        };
+        (logistic(hi, e_hi), logistic(lo, e_lo))
     };
     // ΔG at depth t, ∂ΔG/∂λ and ∂G/∂ρ. Past the far limb (t > 2R: the kernel of a pixel near
     // the middle of a small, much blurred disc reaches there) ρ stays at −1 and G no longer
@@ -175,9 +192,7 @@ pub(super) fn blurred_rise(x: f64, h: f64, s: f64, r: f64, lamp: f64) -> Blurred
     };
     // The kernel at x − t: its value, ∂/∂x and ∂/∂s.
     let kernel = |t: f64| {
-        let z = x - t;
-        let (l1, k1, s1) = logistic(z + 0.5 * h);
-        let (l0, k0, s0) = logistic(z - 0.5 * h);
+        let ((l1, k1, s1), (l0, k0, s0)) = ends(x - t);
         ((l1 - l0) * inv_h, (k1 - k0) * inv_h, (s1 - s0) * inv_h)
     };
     // The reach's ends move with x and s: what the kernel leaves there (e^{−6} of it) counts in
