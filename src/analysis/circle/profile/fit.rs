@@ -505,7 +505,7 @@ where
     // 10 % more model evaluations; docs/accuracy.md, session 29). Its cost, Σ c²·ln(1 + (r/c)²),
     // gives σ² below: no smaller than the weighted residuals' Σ w·r², so the dots left in
     // still widen the σ.
-    // It settles to `FINAL_SETTLE_PX`: its steps shrink by about half a pass (the reweighting
+    // It settles to `FINAL_SETTLE_PX`: each of its steps is about half the last (the reweighting
     // converges linearly), so what is left when a step falls below 3e-4 px is about as much
     // again, a hundredth of the centres' error. From 1e-4: 7 % fewer model evaluations on the
     // independent renders, their figures within a unit of the last digit but v05's e and ψ1

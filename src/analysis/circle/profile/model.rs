@@ -155,7 +155,8 @@ pub(super) fn blurred_rise(x: f64, h: f64, s: f64, r: f64, lamp: f64) -> Blurred
     };
     // The kernel's two ends, z ± h/2, lie on one side of zero at most nodes, where their
     // exponentials differ by the factor e^{−h/s}: one exponential a node there instead of two
-    // (the exponentials were most of this quadrature's cost, and it is most of a blurred disc's).
+    // (the exponentials were a quarter or more of this quadrature's cost, and it is most of a
+    // blurred disc's).
     let across = (-h * inv_s).exp();
     let ends = |z: f64| {
         let (hi, lo) = (z + 0.5 * h, z - 0.5 * h);
