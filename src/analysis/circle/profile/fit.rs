@@ -21,9 +21,6 @@ const EDGE_WIDTH_PX: (f64, f64) = (0.05, 3.0);
 /// takes c = 2.385σ: the usual choice, 95 % as efficient as least squares on Gaussian noise.
 const CAUCHY_SCALE: f64 = 2.385;
 
-/// The step, px of a centre or radius, below which the final round stops (`fit_grey_levels`).
-const FINAL_SETTLE_PX: f64 = 3e-4;
-
 /// How two discs' model terms combine (`fit_grey_levels`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum Layering {
@@ -505,20 +502,18 @@ where
     // 10 % more model evaluations; docs/accuracy.md, session 29). Its cost, Σ c²·ln(1 + (r/c)²),
     // gives σ² below: no smaller than the weighted residuals' Σ w·r², so the dots left in
     // still widen the σ.
-    // It settles to `FINAL_SETTLE_PX`: each of its steps is about half the last (the reweighting
-    // converges linearly), so what is left when a step falls below 3e-4 px is about as much
-    // again, a hundredth of the centres' error. From 1e-4: 7 % fewer model evaluations on the
-    // independent renders, their figures within a unit of the last digit but v05's e and ψ1
-    // (0.001 and 0.002, under a tenth of their σ), and the 190 varied-look recordings' centre
-    // RMS the same to 0.0001 px in every family (docs/performance.md, session 41). At 1e-3
-    // (session 38) the centres moved 1 %.
+    // It settles to 1e-4 px. At 3e-4 (session 41) it took 7 % fewer model evaluations with the
+    // same centres on 190 varied-look recordings and the independent renders, but a disc behind
+    // the other, fitted as a crescent from where the lone fits put the pair, came out 1.09 px
+    // from its centre instead of 0.79 (`one_silhouette_of_both_in_the_direct_view_is_split_by_
+    // the_mirrors_x` asks for a pixel); at 1e-3 (session 38) the centres moved 1 %.
     let (cost, jtj) = match (rounds, boxed) {
         (Rounds::Box, Some(b)) => b,
         (Rounds::Box, None) => return None,
         _ => {
             evaluate(&p, &keep, true, &mut at_p);
             let final_robust = Some(CAUCHY_SCALE * robust_sigma(&at_p, &p));
-            let (cost, jtj, _) = descend(&mut p, &keep, true, FINAL_SETTLE_PX, final_robust, at_p);
+            let (cost, jtj, _) = descend(&mut p, &keep, true, 1e-4, final_robust, at_p);
             (cost, jtj)
         }
     };
