@@ -275,6 +275,22 @@ mod tests {
             .fold(Matrix3::zeros(), |c, (_, d)| c + d * d.transpose())
     }
 
+    /// Each spin, before and after, within `k` of its σ of the truth on every axis, its frames'
+    /// influences carrying its covariance.
+    fn covered_within(spins: [Option<SpinFit>; 2], truths: [V3; 2], k: f64) {
+        for ((got, truth), what) in spins.into_iter().zip(truths).zip(["before", "after"]) {
+            let got = got.expect("a spin");
+            for i in 0..3 {
+                let z = (got.omega[i] - truth[i]) / got.cov[(i, i)].sqrt();
+                assert!(z.abs() <= k, "{what}, axis {i}: {z:.1}σ");
+            }
+            assert!(
+                (influence_sum(&got.frame_influence) - got.cov).norm() < 1e-9 * got.cov.norm(),
+                "influences carry the covariance"
+            );
+        }
+    }
+
     /// A fit whose covariance is that of its influences, as `rotation::fit_spin` makes them.
     fn from_influences(omega: V3, pairs: usize, frame_influence: Vec<(usize, V3)>) -> SpinFit {
         SpinFit {
@@ -379,17 +395,7 @@ mod tests {
             "χ² {:?}",
             check.chi2
         );
-        for (got, truth, what) in [(pre2, truth_pre, "before"), (post2, truth_post, "after")] {
-            let got = got.expect("a spin");
-            for i in 0..3 {
-                let z = (got.omega[i] - truth[i]) / got.cov[(i, i)].sqrt();
-                assert!(z.abs() <= 2.0, "{what}, axis {i}: {z:.1}σ");
-            }
-            assert!(
-                (influence_sum(&got.frame_influence) - got.cov).norm() < 1e-9 * got.cov.norm(),
-                "influences carry the covariance"
-            );
-        }
+        covered_within([pre2, post2], [truth_pre, truth_post], 2.0);
     }
 
     /// A post-impact fit with a long, thin covariance (correlations 0.94–0.99) whose error lies
@@ -466,17 +472,7 @@ mod tests {
             "the check passes, beyond 2σ: χ² {:?}",
             check.chi2
         );
-        for (got, truth, what) in [(pre2, truth_pre, "before"), (post2, truth_post, "after")] {
-            let got = got.expect("a spin");
-            for i in 0..3 {
-                let z = (got.omega[i] - truth[i]) / got.cov[(i, i)].sqrt();
-                assert!(z.abs() <= 3.0, "{what}, axis {i}: {z:.1}σ");
-            }
-            assert!(
-                (influence_sum(&got.frame_influence) - got.cov).norm() < 1e-9 * got.cov.norm(),
-                "influences carry the covariance"
-            );
-        }
+        covered_within([pre2, post2], [truth_pre, truth_post], 3.0);
         // The same spins agreeing with the impulse to within its scatter: left as they were.
         let close = fit_axes(
             pre.omega + imp.delta_omega + V3::new(0.5, -1.0, 1.0),

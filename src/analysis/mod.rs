@@ -917,6 +917,24 @@ mod tests {
     /// Frame `k` of a synthetic recording at `dt` s a frame: sphere a measured at `centres_px`
     /// in the views (σ 0.02 px, the default look's diameter, no markers) with its radius
     /// straying by `radius_stray_px`; sphere b nowhere.
+    /// Thirty frames 1 ms apart of a alone flying steadily through both views, its radius
+    /// straying by `stray_px(k)` in frame k (`frame_of_a`).
+    fn steady_phase_of_a(views: &[View], stray_px: &dyn Fn(usize) -> f64) -> Vec<FrameObs> {
+        let dt = 1e-3;
+        let v = V3::new(400.0, -300.0, 20.0);
+        (0..30)
+            .map(|k| {
+                let p = V3::new(-20.0, 10.0, 0.0) + v * (k as f64 * dt);
+                frame_of_a(
+                    k,
+                    dt,
+                    [views[0].project(&p), views[1].project(&p)],
+                    stray_px(k),
+                )
+            })
+            .collect()
+    }
+
     fn frame_of_a(k: usize, dt: f64, centres_px: [[f64; 2]; 2], radius_stray_px: f64) -> FrameObs {
         let m = |px: [f64; 2]| {
             Some(tracking::Measurement {
@@ -1158,21 +1176,7 @@ mod tests {
     fn a_run_of_misfit_radii_at_one_end_of_a_phase_bounds_its_velocity() {
         let cfg = Config::default_config();
         let views = geometry::views(&cfg);
-        let dt = 1e-3;
-        let v = V3::new(400.0, -300.0, 20.0);
-        let recording = |stray_px: &dyn Fn(usize) -> f64| -> Vec<FrameObs> {
-            (0..30)
-                .map(|k| {
-                    let p = V3::new(-20.0, 10.0, 0.0) + v * (k as f64 * dt);
-                    frame_of_a(
-                        k,
-                        dt,
-                        [views[0].project(&p), views[1].project(&p)],
-                        stray_px(k),
-                    )
-                })
-                .collect()
-        };
+        let recording = |stray_px: &dyn Fn(usize) -> f64| steady_phase_of_a(&views, stray_px);
         let frames: Vec<usize> = (0..30).collect();
         // Noise-level strays, ±0.02 px, alternating.
         let noise = |k: usize| if k.is_multiple_of(2) { 0.02 } else { -0.02 };
@@ -1208,20 +1212,14 @@ mod tests {
     fn a_drift_of_the_diameters_along_a_phase_bounds_its_velocity() {
         let cfg = Config::default_config();
         let views = geometry::views(&cfg);
-        let dt = 1e-3;
-        let v = V3::new(400.0, -300.0, 20.0);
         let recording = |diameter_px: &dyn Fn(usize) -> f64| -> Vec<FrameObs> {
-            (0..30)
-                .map(|k| {
-                    let p = V3::new(-20.0, 10.0, 0.0) + v * (k as f64 * dt);
-                    let mut f =
-                        frame_of_a(k, dt, [views[0].project(&p), views[1].project(&p)], 0.0);
-                    for m in f.spheres[0].iter_mut().flatten() {
-                        m.diameter_px = diameter_px(k);
-                    }
-                    f
-                })
-                .collect()
+            let mut obs = steady_phase_of_a(&views, &|_| 0.0);
+            for (k, f) in obs.iter_mut().enumerate() {
+                for m in f.spheres[0].iter_mut().flatten() {
+                    m.diameter_px = diameter_px(k);
+                }
+            }
+            obs
         };
         let frames: Vec<usize> = (0..30).collect();
         let noise = |k: usize| if k.is_multiple_of(2) { 0.01 } else { -0.01 };
