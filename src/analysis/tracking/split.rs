@@ -186,7 +186,7 @@ impl Tracker {
         let behind = front.and_then(|fr| {
             starts.iter().find_map(|[fa, fb]| {
                 stages::timed(Stage::Circles, || {
-                    profile_fit_behind(cx.img, view, [fa, fb], fr, lv.background, dots)
+                    profile_fit_behind(cx.img, view, [fa, fb], fr, radius, lv.background, dots)
                 })
                 .filter(|pair| {
                     pair.iter().zip([fa, fb]).all(|(n, o)| {

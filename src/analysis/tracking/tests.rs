@@ -170,11 +170,13 @@ fn one_behind_the_other(s: usize, k: usize) -> Vector3<f64> {
 
 /// Both spheres are measured in the direct view's one silhouette of both, split by the
 /// mirror's x, and nearly everywhere refitted on the grey levels with a's disc hiding b's: a
-/// (whole) where it is, b (a crescent a radius wide, one limb only) within a pixel, which is
-/// what `overlap` then measures on x and adds to its σ. Before, a circle fitted to the
-/// silhouette was dropped (it holds both) and neither sphere had a y; and with the refit
-/// started from the outline split alone, which the lamp 30° off axis puts 1.3 px towards
-/// itself, the refit was refused in every frame.
+/// (whole) where it is, b (a crescent a radius wide, its lit side) within a tenth of a pixel
+/// (0.036 px at worst, a 0.027). Before, a circle fitted to the silhouette was dropped (it
+/// holds both) and neither sphere had a y; with the refit started from the outline split
+/// alone, which the lamp 30° off axis puts 1.3 px towards itself, the refit was refused in
+/// every frame; and with b's shading held symmetric round it (a lamp of its own traded off
+/// with its centre) b came out up to 0.79 px off, 1.09 px had the fit been let settle
+/// (session 41).
 #[test]
 fn one_silhouette_of_both_in_the_direct_view_is_split_by_the_mirrors_x() {
     let cfg = Config::default_config();
@@ -200,7 +202,7 @@ fn one_silhouette_of_both_in_the_direct_view_is_split_by_the_mirrors_x() {
         }
     }
     assert!(
-        both >= n * 9 / 10 && refitted >= n * 3 / 4 && worst[0] < 0.15 && worst[1] < 1.0,
+        both >= n * 9 / 10 && refitted >= n * 9 / 10 && worst[0] < 0.06 && worst[1] < 0.1,
         "both measured in the direct view in {both} of {n} frames, refitted in {refitted}; worst refitted centres (a, b) {worst:.3?} px off"
     );
 }

@@ -62,16 +62,18 @@ where
     // nine times near the edge).
     let hiding = matches!(layering, Layering::InFront(_)) && N == 2;
     // The disc behind shows a crescent, on which a lamp's direction and a harmonic round the
-    // disc trade off with its centre (one frame in a dozen came out 0.1 px off): its shading
-    // is held symmetric, those four terms at zero.
-    let symmetric_disc = match layering {
+    // disc of its own trade off with its centre (one frame in a dozen came out 0.1 px off):
+    // it has no harmonic, and its lamp is the front disc's (held to it below), the one lamp
+    // of the view lighting both spheres a few millimetres apart. Held symmetric instead, as
+    // it was, a crescent lit from 30° off the axis came out up to 1.1 px off.
+    let back_disc = match layering {
         Layering::InFront(f) if N == 2 => Some(1 - f),
         _ => None,
     };
     let model = PixelModel {
         layering,
         hiding,
-        symmetric_disc,
+        back_disc,
         convolved,
     };
     let eval = |p: &Vp<P>, px: &RingPixel, area: bool| model.eval::<P, N>(p, px, area);
@@ -97,7 +99,7 @@ where
     if cold {
         let lin_index: Vec<usize> = std::iter::once(0)
             .chain((0..N).flat_map(|k| {
-                let terms: &[usize] = if symmetric_disc == Some(k) {
+                let terms: &[usize] = if back_disc == Some(k) {
                     &[4, 5]
                 } else {
                     &[4, 5, 8, 9]
@@ -125,7 +127,7 @@ where
         // at its rim gets no lamp.
         for k in 0..N {
             let o = 1 + DISC_PARAMS * k;
-            if symmetric_disc == Some(k) {
+            if back_disc == Some(k) {
                 p[o + 5] = p[o + 5].max(0.0);
                 continue;
             }
@@ -141,12 +143,20 @@ where
     }
     // A disc behind another shows a crescent, which fixes its radius poorly: there the radii
     // keep the ratio of the starts (the spheres' sizes are known), as a stiff penalty on
-    // R_back − k·R_front whose gradient row is one of `tie_rows`.
-    let mut ties: [Option<(usize, usize, f64)>; 2] = [None; 2];
-    if let Layering::InFront(f) = layering {
-        if N == 2 {
-            let (rf, rb) = (1 + DISC_PARAMS * f + 2, 1 + DISC_PARAMS * (1 - f) + 2);
-            ties[0] = Some((rf, rb, starts[1 - f].radius / starts[f].radius));
+    // R_back − k·R_front whose gradient row is one of `tie_rows`; and its lamp's direction is
+    // the front disc's, as penalties on their difference. (Its harmonic held to the front
+    // one's too: on hw-sim renders lit 15–30° off axis 0.007–0.010 px against 0.009–0.011, but
+    // on an independent render, v03, the front disc's centres 0.044 → 0.070 px RMS; and a
+    // harmonic in grey levels is the same on two spheres only if they are painted alike.)
+    let mut ties: [Option<(usize, usize, f64)>; 3] = [None; 3];
+    if let (Layering::InFront(f), Some(b)) = (layering, back_disc) {
+        let (of, ob) = (1 + DISC_PARAMS * f, 1 + DISC_PARAMS * b);
+        ties[0] = Some((of + 2, ob + 2, starts[b].radius / starts[f].radius));
+        ties[1] = Some((of + 6, ob + 6, 1.0));
+        ties[2] = Some((of + 7, ob + 7, 1.0));
+        if cold {
+            p[ob + 6] = p[of + 6];
+            p[ob + 7] = p[of + 7];
         }
     }
     // A disc of known radius (`radii_px`: a lone one cut by the view's border, whose visible

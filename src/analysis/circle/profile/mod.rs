@@ -435,7 +435,10 @@ pub fn profile_fit_pair(
 /// Two discs of one silhouette, one partly hiding the other (the mirror after an oblique
 /// impact), fitted together on the grey levels: the model is the front disc's term of
 /// `profile_fit`'s model over the back disc's, which shows only where the front one does not
-/// (and through the front's blurred edge), and the two radii keep the ratio of the starts.
+/// (and through the front's blurred edge), and the two radii keep the ratio of the spheres'
+/// sizes `radii_px` (each start is given its sphere's: the starts' own radii, from an outline
+/// split or a view's memory, held a crescent 9 % too large and 0.6 px off on a cluttered
+/// varied-look recording, seed 130). The disc behind is lit by the front one's lamp.
 /// Why: the split into circles rests on outline points, and where the outlines meet they are
 /// neither circle's; as the spheres slide behind each other over a few frames the split circles
 /// drifted by 0.1 px, which a line fit took for a z velocity several σ off. `front` is the
@@ -447,9 +450,15 @@ pub fn profile_fit_behind(
     view: &View,
     starts: [&CircleFit; 2],
     front: usize,
+    radii_px: [f64; 2],
     background: f64,
     dots: &[DotMask],
 ) -> Option<[CircleFit; 2]> {
+    let sized = [0, 1].map(|k| CircleFit {
+        radius: radii_px[k],
+        ..*starts[k]
+    });
+    let starts = [&sized[0], &sized[1]];
     let (f, b) = (starts[front], starts[1 - front]);
     // A crescent narrower than three quarters of the radius let the back disc slide along it by
     // a tenth of a pixel in renders; the split's circles are better there.

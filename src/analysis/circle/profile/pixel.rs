@@ -16,8 +16,9 @@ pub(super) struct PixelModel {
     /// A disc hides another (two discs, `Layering::InFront`): its step's own derivatives are
     /// needed.
     pub(super) hiding: bool,
-    /// The disc behind another, whose shading is held symmetric.
-    pub(super) symmetric_disc: Option<usize>,
+    /// The disc behind another, which has no harmonic of its own (its lamp is the front
+    /// disc's: `fit_grey_levels`).
+    pub(super) back_disc: Option<usize>,
     /// A lone disc's shading rise blurred with its edge (`blurred_rise`).
     pub(super) convolved: bool,
 }
@@ -155,9 +156,9 @@ impl PixelModel {
             j[o + 3] = dl_ds * shown + l * b * dg_ds;
             j[o + 4] = l;
             j[o + 5] = l * lit.mean;
-            if self.symmetric_disc != Some(k) {
-                j[o + 6] = l * b * lit.d_lamp * cs;
-                j[o + 7] = l * b * lit.d_lamp * sn;
+            j[o + 6] = l * b * lit.d_lamp * cs;
+            j[o + 7] = l * b * lit.d_lamp * sn;
+            if self.back_disc != Some(k) {
                 j[o + 8] = l * cs;
                 j[o + 9] = l * sn;
             }
