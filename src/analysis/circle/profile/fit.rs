@@ -512,18 +512,20 @@ where
     // 10 % more model evaluations; docs/accuracy.md, session 29). Its cost, Σ c²·ln(1 + (r/c)²),
     // gives σ² below: no smaller than the weighted residuals' Σ w·r², so the dots left in
     // still widen the σ.
-    // It settles to 1e-4 px. At 3e-4 (session 41) it took 7 % fewer model evaluations with the
-    // same centres on 190 varied-look recordings and the independent renders, but a disc behind
-    // the other, fitted as a crescent from where the lone fits put the pair, came out 1.09 px
-    // from its centre instead of 0.79 (`one_silhouette_of_both_in_the_direct_view_is_split_by_
-    // the_mirrors_x` asks for a pixel); at 1e-3 (session 38) the centres moved 1 %.
+    // It settles to 3e-4 px: 7 % fewer model evaluations than at 1e-4 on the independent
+    // renders (27 167 → 25 278 a frame), the same centres to 0.0001 px on 190 varied-look
+    // recordings and the renders' estimates within a unit of their last digit (docs/
+    // performance.md, session 42). Tried first in session 41 and undone then: a disc behind
+    // the other, its shading held symmetric, did not settle and came out 1.09 px off instead of
+    // 0.79; lit by the front disc's lamp it settles, 0.036 px either way. At 1e-3 (session 38)
+    // the centres moved 1 %.
     let (cost, jtj) = match (rounds, boxed) {
         (Rounds::Box, Some(b)) => b,
         (Rounds::Box, None) => return None,
         _ => {
             evaluate(&p, &keep, true, &mut at_p);
             let final_robust = Some(CAUCHY_SCALE * robust_sigma(&at_p, &p));
-            let (cost, jtj, _) = descend(&mut p, &keep, true, 1e-4, final_robust, at_p);
+            let (cost, jtj, _) = descend(&mut p, &keep, true, 3e-4, final_robust, at_p);
             (cost, jtj)
         }
     };
