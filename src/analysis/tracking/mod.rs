@@ -26,7 +26,7 @@ use identity::{
     assign, assign_by_continuity, assign_by_prediction, assign_by_x, extrapolate, x_names_both,
     ViewMemory,
 };
-use measure::{fit_from_track, measure_blob, measure_touching, BlobFit};
+use measure::{fit_from_track, may_hold_both, measure_blob, measure_touching, BlobFit};
 
 #[derive(Clone, Debug)]
 pub struct Measurement {
@@ -505,9 +505,18 @@ impl Tracker {
                 }
             }
             let held = cx.pass.radii(cx.i, vi);
-            match measure_blob(
+            let measured = measure_blob(
                 cx.img, view, b, s, radius[s], other, &lv, cx.cfg, dots, held, fit,
-            ) {
+            )
+            .and_then(|(m, f)| {
+                let other = (assigned[1 - s].is_none())
+                    .then(|| self.memory[vi].predict(1 - s, cx.t, self.recent_s));
+                match may_hold_both(s, &f, radius, other, self.memory[vi].radius[s]) {
+                    Some(reason) => Err(reason),
+                    None => Ok((m, f)),
+                }
+            });
+            match measured {
                 Ok((m, f)) => {
                     fitted[s] = Some(f);
                     spheres[s][vi] = Some(m);
