@@ -295,6 +295,10 @@ pub(crate) enum BenchWhat {
         /// the camera's ceiling), which `varied` does not draw.
         #[arg(long, default_value = "default")]
         looks: String,
+        /// The camera's exposure, ms: hw-sim smears the spheres over it, and the config tells
+        /// the analysis (`camera.exposure_us`). Without it, hw-sim's 0.1 ms, not stated.
+        #[arg(long)]
+        exposure_ms: Option<f64>,
         /// Where sessions are recorded while they are analysed (removed afterwards, unless
         /// `--keep`).
         #[arg(long, default_value = ".")]
@@ -306,7 +310,7 @@ pub(crate) enum BenchWhat {
         /// Record nothing: analyse these sessions, recorded before with `--keep` (or
         /// directories of them), each with its own config and `truth.json`. Two builds then
         /// differ only by what they do, not by which experiments hw-sim filmed.
-        #[arg(long, num_args = 1.., conflicts_with_all = ["quick", "repeat", "looks", "keep"])]
+        #[arg(long, num_args = 1.., conflicts_with_all = ["quick", "repeat", "looks", "exposure_ms", "keep"])]
         sessions: Vec<PathBuf>,
     },
 }

@@ -421,6 +421,7 @@ fn real_main(cli: Cli) -> Result<i32> {
                 quick,
                 repeat,
                 looks,
+                exposure_ms,
                 dir,
                 keep,
                 sessions,
@@ -442,10 +443,16 @@ fn real_main(cli: Cli) -> Result<i32> {
                         anyhow::anyhow!("--looks: {}", e.trim_start_matches("sim.look_family: "))
                     })?;
                 }
+                if let Some(ms) = exposure_ms {
+                    if !(ms.is_finite() && (0.0..=100.0).contains(&ms)) {
+                        bail!("--exposure-ms: {ms} is out of range, expected 0 to 100 (ms the shutter is open)");
+                    }
+                }
                 let text = impactcam::bench::accuracy::accuracy(
                     quick,
                     repeat,
                     looks.as_deref(),
+                    exposure_ms,
                     &dir,
                     keep,
                 );

@@ -220,11 +220,15 @@ pub fn analyze_detailed(
     })?;
     let pass = SecondPass {
         dots: rim_dots(&first.1, cfg),
-        radii: radius_misfit::held_radii(&first.1.obs),
+        radii: radius_misfit::held_radii(
+            &first.1.obs,
+            cfg.camera.exposure_us.map_or(0.0, |us| us * 1e-6),
+        ),
     };
     // The first pass's grey-level fits stopped after their box rounds: the second finishes
-    // them, with the rim dots masked where there are any, and a blurred disc's radius held at
-    // its sphere's first-pass radii round that frame.
+    // them, with the rim dots masked where there are any, a blurred disc's radius held at
+    // its sphere's first-pass radii round that frame, and a disc that moved while the shutter
+    // was open modelled over the exposure.
     stages::set_pass(1);
     memo.start_second_pass();
     let (obs, unmeasured) = tracking::measure_all(src, &views, cfg, &pass, &memo, &mut |i, n| {

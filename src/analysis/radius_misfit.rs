@@ -1,7 +1,7 @@
 //! A centre whose fitted radius strays from the radius the same sphere shows in the frames
 //! round it: the stray is a misfit of the disc's model, and it is carried into the centre's σ.
 //! After the first pass, the same medians are the radii the second holds blurred discs at
-//! (`held_radii`).
+//! (`held_radii`), beside each disc's smear over the exposure (`smear_px`).
 //!
 //! Why: a sphere's imaged radius changes only slowly along its flight (perspective, the mirror's
 //! longer path), so where one frame's fit finds it a few tenths of a pixel larger or smaller than
@@ -22,8 +22,8 @@
 //! Same 190 recordings, every centre and axis: 58.5 % → 69.5 % within ±1σ, 0.72 % → 0.20 %
 //! beyond 5σ (defocused looks 40 % → 61 %); the centres themselves are unchanged.
 
-use super::circle::HeldRadius;
-use super::tracking::{FrameObs, HeldRadii};
+use super::circle::FirstPassDisc;
+use super::tracking::{FirstPassDiscs, FrameObs};
 
 /// Frames of the same sphere in the same view on each side of a frame whose radii give the
 /// radius it is compared with: enough that a run of misfits near the impact (a few frames)
@@ -47,24 +47,82 @@ pub(super) fn widen(obs: &mut [FrameObs]) {
     }
 }
 
-/// The first pass's radii as the second holds them on blurred discs (`circle::HeldRadius`): for
-/// each measured disc seen whole, the median of its sphere's radii in that view over the frames
-/// round it, and its own stray from that — what `widen` compares it with.
-pub(super) fn held_radii(obs: &[FrameObs]) -> HeldRadii {
-    let mut out = HeldRadii::new();
+/// The first pass's discs as the second fits them (`circle::FirstPassDisc`): for each measured
+/// disc seen whole, the median of its sphere's radii in that view over the frames round it (the
+/// radius a blurred disc is held at), its own stray from that — what `widen` compares it with —
+/// and its smear over `exposure_s` (`smear_px`; 0 s: none).
+pub(super) fn held_radii(obs: &[FrameObs], exposure_s: f64) -> FirstPassDiscs {
+    let mut out = FirstPassDiscs::new();
     for (k, s, vi, median_px, stray_px) in strays(obs) {
         let Some(m) = obs[k].spheres[s][vi].as_ref() else {
             continue;
         };
         out.entry((obs[k].index as usize, vi))
             .or_default()
-            .push(HeldRadius {
+            .push(FirstPassDisc {
                 centre_px: m.centre_px,
                 radius_px: 0.5 * median_px,
                 stray_px,
+                smear_px: smear_px(obs, k, s, vi, exposure_s),
             });
     }
     out
+}
+
+/// A smear shorter than this is not modelled, px: the pixel's own width spreads the edge as
+/// much (a box of 1 px and a smear of 0.5 px widen it by 12 %, which the edge's fitted width
+/// takes up); and 0.1 ms at the rig's 0.3–3 px per millisecond, hw-sim's default and the
+/// independent renders' exposure, stays below it.
+const SMEAR_MIN_PX: f64 = 0.5;
+
+/// How far sphere `s`'s disc in view `vi` moved over `exposure_s` at frame `k`, px: its image
+/// velocity from the first pass's centres in the frames next to it. Where the velocities to the
+/// frame before and to the frame after differ by more than a fifth, the motion changed there
+/// (an impact, a bounce): the side whose own neighbour agrees with it is taken, so that a
+/// frame just before an impact is not smeared with the velocity after it. Zero where neither
+/// neighbour was measured, or the smear is below `SMEAR_MIN_PX`.
+fn smear_px(obs: &[FrameObs], k: usize, s: usize, vi: usize, exposure_s: f64) -> [f64; 2] {
+    if exposure_s <= 0.0 {
+        return [0.0; 2];
+    }
+    let at = |i: usize| -> Option<([f64; 2], f64)> {
+        let m = obs.get(i)?.spheres[s].get(vi)?.as_ref()?;
+        Some((m.centre_px, obs[i].time_s))
+    };
+    // Velocity from frame i to frame j, px/s.
+    let vel = |i: usize, j: usize| -> Option<[f64; 2]> {
+        let ((a, ta), (b, tb)) = (at(i)?, at(j)?);
+        let dt = tb - ta;
+        (dt > 0.0).then(|| [(b[0] - a[0]) / dt, (b[1] - a[1]) / dt])
+    };
+    let back = k.checked_sub(1).and_then(|i| vel(i, k));
+    let fwd = vel(k, k + 1);
+    let norm = |v: [f64; 2]| v[0].hypot(v[1]);
+    let differ = |a: [f64; 2], b: [f64; 2]| norm([a[0] - b[0], a[1] - b[1]]);
+    let v = match (back, fwd) {
+        (Some(b), Some(f)) if differ(b, f) <= 0.2 * norm(b).max(norm(f)) => {
+            [0.5 * (b[0] + f[0]), 0.5 * (b[1] + f[1])]
+        }
+        (Some(b), Some(f)) => {
+            let back2 = k.checked_sub(2).and_then(|i| vel(i, k - 1));
+            let fwd2 = vel(k + 1, k + 2);
+            let steady =
+                |v: [f64; 2], w: Option<[f64; 2]>| w.map_or(f64::INFINITY, |w| differ(v, w));
+            if steady(b, back2) <= steady(f, fwd2) {
+                b
+            } else {
+                f
+            }
+        }
+        (Some(v), None) | (None, Some(v)) => v,
+        (None, None) => return [0.0; 2],
+    };
+    let smear = [v[0] * exposure_s, v[1] * exposure_s];
+    if norm(smear) < SMEAR_MIN_PX {
+        [0.0; 2]
+    } else {
+        smear
+    }
 }
 
 /// Per measured disc seen whole (`obs` index, sphere, view): the median of its sphere's
@@ -166,5 +224,53 @@ mod tests {
             let sigma = f.spheres[0][0].as_ref().unwrap().sigma_px;
             assert!((sigma[0] - 0.03).abs() < 1e-12, "{sigma:?}");
         }
+    }
+
+    /// A disc's smear is its velocity times the exposure, from the frames next to it, and at an
+    /// impact from the side whose motion it shares: sphere a moves +2 px a frame until halfway
+    /// between frames 20 and 21, and −1 px a frame after.
+    #[test]
+    fn a_discs_smear_is_its_velocity_over_the_exposure_on_its_side_of_an_impact() {
+        let mut obs: Vec<FrameObs> = (0..40).map(|k| frame(k, 13.4)).collect();
+        for (k, f) in obs.iter_mut().enumerate() {
+            let x = if k <= 20 {
+                2.0 * k as f64
+            } else {
+                40.5 - (k - 21) as f64
+            };
+            f.spheres[0][0].as_mut().unwrap().centre_px = [x, 10.0];
+        }
+        // 1 ms frames, 0.6 ms exposure: 1.2 px of smear before, 0.6 px after.
+        let discs = held_radii(&obs, 0.6e-3);
+        // Sphere a's disc first (the same order as the spheres).
+        let smear_u = |k: usize| {
+            let s = discs[&(k, 0)][0].smear_px;
+            assert!(s[1].abs() < 1e-9, "frame {k}: {s:?}");
+            s[0]
+        };
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-9;
+        assert!(near(smear_u(10), 1.2), "{}", smear_u(10));
+        assert!(
+            near(smear_u(20), 1.2),
+            "the last frame before the impact: {}",
+            smear_u(20)
+        );
+        assert!(
+            near(smear_u(21), -0.6),
+            "the first after it: {}",
+            smear_u(21)
+        );
+        assert!(near(smear_u(30), -0.6), "{}", smear_u(30));
+        // Sphere b stands still, and without an exposure nothing is smeared.
+        assert_eq!(discs[&(10, 0)][1].smear_px, [0.0, 0.0]);
+        assert!(held_radii(&obs, 0.0)
+            .values()
+            .flatten()
+            .all(|d| d.smear_px == [0.0, 0.0]));
+        // Below half a pixel a smear is not modelled.
+        assert!(held_radii(&obs, 0.24e-3)
+            .values()
+            .flatten()
+            .all(|d| d.smear_px == [0.0, 0.0]));
     }
 }

@@ -40,6 +40,10 @@ pub(crate) fn config_from_calibration(cal: &Value) -> Result<Config, String> {
         .as_u64()
         .ok_or("calibration.image_height missing")? as u32;
     cfg.camera.frame_rate_hz = num(&cal["fps"]).ok_or("fps missing")?;
+    // What the experimenter knows of the shutter: the analysis models a disc's smear over it.
+    cfg.camera.exposure_us = num(&cal["exposure_s"])
+        .filter(|s| *s > 0.0)
+        .map(|s| s * 1e6);
     let (da, db) = (
         num(&cal["diameter_a_m"]).ok_or("diameter_a_m missing")? * 1e3,
         num(&cal["diameter_b_m"]).ok_or("diameter_b_m missing")? * 1e3,

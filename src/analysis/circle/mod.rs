@@ -105,7 +105,7 @@ pub fn refine_plan(
     background: f64,
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
-    held: Option<HeldRadius>,
+    held: Option<FirstPassDisc>,
 ) -> Option<Refined> {
     let (edge, hidden) = fit_edges(img, view, rough, radius_px, background, other)?;
     match profile_plan(img, view, &edge, background, other, dots, None, held) {

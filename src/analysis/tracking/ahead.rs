@@ -14,7 +14,7 @@
 
 use super::measure::{finish_blob, fit_blob, plan_blob, BlobFit, BlobPlan};
 use super::SecondPass;
-use crate::analysis::circle::{DotMask, HeldRadius};
+use crate::analysis::circle::{DotMask, FirstPassDisc};
 use crate::analysis::detect::{find_blobs, levels, Blob, ViewLevels};
 use crate::analysis::geometry::View;
 use crate::analysis::image::GreyImage;
@@ -141,7 +141,7 @@ impl FitMemo {
         other: Option<([f64; 2], f64)>,
         background: f64,
         dots: &[DotMask],
-        held: &[HeldRadius],
+        held: &[FirstPassDisc],
     ) -> BlobFit {
         let key = FitKey::new(vi, b, radius_px, other);
         let kept = self

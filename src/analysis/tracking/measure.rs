@@ -4,7 +4,7 @@
 
 use super::{Measurement, ViewLevels};
 use crate::analysis::circle::{
-    profile_finish, profile_fit_at, profile_plan, refine_plan, CircleFit, DotMask, HeldRadius,
+    profile_finish, profile_fit_at, profile_plan, refine_plan, CircleFit, DotMask, FirstPassDisc,
     ProfilePlan, Refined,
 };
 use crate::analysis::detect::Blob;
@@ -28,7 +28,7 @@ pub(super) enum BlobFit {
 }
 
 ///
-/// `held`: the second pass's radii (`HeldRadius`), of which the one near the blob is held where
+/// `held`: the second pass's radii (`FirstPassDisc`), of which the one near the blob is held where
 /// its edge is blurred.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fit_blob(
@@ -39,7 +39,7 @@ pub(super) fn fit_blob(
     other: Option<([f64; 2], f64)>,
     background: f64,
     dots: &[DotMask],
-    held: &[HeldRadius],
+    held: &[FirstPassDisc],
 ) -> BlobFit {
     match plan_blob(img, view, b, radius_px, other, background, dots, held) {
         (_, Some(plan)) => finish_blob(img, view, &plan, dots, held),
@@ -59,9 +59,9 @@ pub(super) fn plan_blob(
     other: Option<([f64; 2], f64)>,
     background: f64,
     dots: &[DotMask],
-    held: &[HeldRadius],
+    held: &[FirstPassDisc],
 ) -> (BlobFit, Option<BlobPlan>) {
-    let near = HeldRadius::near(held, b.centroid);
+    let near = FirstPassDisc::near(held, b.centroid);
     let refined = stages::timed(Stage::Circles, || {
         refine_plan(
             img, view, b.centroid, radius_px, background, other, dots, near,
@@ -135,9 +135,9 @@ pub(super) fn finish_blob(
     view: &View,
     plan: &BlobPlan,
     dots: &[DotMask],
-    held: &[HeldRadius],
+    held: &[FirstPassDisc],
 ) -> BlobFit {
-    let near = HeldRadius::near(held, plan.centroid);
+    let near = FirstPassDisc::near(held, plan.centroid);
     match stages::timed(Stage::Circles, || {
         profile_finish(img, view, &plan.plan, dots, near)
     }) {
@@ -166,7 +166,7 @@ fn with_counts_of(k: CircleFit, f: &CircleFit) -> CircleFit {
 #[derive(Clone, Debug)]
 pub(super) struct BlobPlan {
     plan: ProfilePlan,
-    /// The blob's centroid (which of the second pass's radii is this disc's: `HeldRadius::near`).
+    /// The blob's centroid (which of the second pass's radii is this disc's: `FirstPassDisc::near`).
     centroid: [f64; 2],
     counts: Option<CircleFit>,
     hidden: bool,
@@ -224,7 +224,7 @@ pub(super) fn measure_blob(
     lv: &ViewLevels,
     cfg: &Config,
     dots: &[DotMask],
-    held: &[HeldRadius],
+    held: &[FirstPassDisc],
     fit: Option<BlobFit>,
 ) -> Result<(Measurement, CircleFit), String> {
     let name = ["a", "b"][s];

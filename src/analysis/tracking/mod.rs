@@ -2,7 +2,7 @@
 //! sub-pixel circle fit, and the measurements are labelled a or b (a has the smaller world x, as
 //! the report contract says). What cannot be measured is listed with the reason.
 
-use super::circle::{profile_fit_pair, rings_meet, CircleFit, DotMask, HeldRadius};
+use super::circle::{profile_fit_pair, rings_meet, CircleFit, DotMask, FirstPassDisc};
 use super::detect::{find_blobs, levels, Blob, ViewLevels};
 use super::geometry::View;
 use super::image::GreyImage;
@@ -98,15 +98,15 @@ fn world_x(view: &View, px: [f64; 2]) -> f64 {
 pub type DotMasks = HashMap<(usize, usize), Vec<DotMask>>;
 
 /// Each sphere's radius as the first pass's frames round it show it, by (frame index, view
-/// index): a blurred disc's fit holds it (`circle::HeldRadius`). Empty on the first pass.
-pub type HeldRadii = HashMap<(usize, usize), Vec<HeldRadius>>;
+/// index): a blurred disc's fit holds it (`circle::FirstPassDisc`). Empty on the first pass.
+pub type FirstPassDiscs = HashMap<(usize, usize), Vec<FirstPassDisc>>;
 
 /// What the second pass measures with that the first did not know: the dots on each rim and
 /// each sphere's radius from the frames round it. Empty (`default`) on the first pass.
 #[derive(Clone, Debug, Default)]
 pub struct SecondPass {
     pub dots: DotMasks,
-    pub radii: HeldRadii,
+    pub radii: FirstPassDiscs,
 }
 
 impl SecondPass {
@@ -116,7 +116,7 @@ impl SecondPass {
     }
 
     /// The radii held in frame `i`'s view `vi`.
-    fn radii(&self, i: usize, vi: usize) -> &[HeldRadius] {
+    fn radii(&self, i: usize, vi: usize) -> &[FirstPassDisc] {
         self.radii.get(&(i, vi)).map(Vec::as_slice).unwrap_or(&[])
     }
 }
@@ -534,7 +534,7 @@ impl Tracker {
         if let [Some(fa), Some(fb)] = &fitted {
             if rings_meet(fa, fb) {
                 let radii = cx.pass.radii(cx.i, vi);
-                let held = [fa, fb].map(|f| HeldRadius::near(radii, f.centre));
+                let held = [fa, fb].map(|f| FirstPassDisc::near(radii, f.centre));
                 let pair = stages::timed(Stage::Circles, || {
                     profile_fit_pair(cx.img, view, [fa, fb], lv.background, dots, held)
                 });

@@ -35,6 +35,9 @@ pub struct Case {
     /// `sim.look_family` (a family of `hw_sim::Look::FAMILIES`, or "varied"); None is the
     /// default look, on which the analysis was developed (an in-distribution figure).
     pub looks: Option<String>,
+    /// The camera's exposure, ms (`sim.exposure_ms`, and `camera.exposure_us` for the
+    /// analysis); None: hw-sim's default, 0.1 ms, not stated in the config.
+    pub exposure_ms: Option<f64>,
 }
 
 /// The sweep: every tube angle with obliquities from head-on to grazing (both branches), at
@@ -53,6 +56,7 @@ pub fn sweep(quick: bool) -> Vec<Case> {
             height: h,
             seed,
             looks: None,
+            exposure_ms: None,
         });
     };
     if quick {
@@ -119,6 +123,10 @@ pub fn case_config(c: &Case, dir: &Path) -> Config {
     cfg.sim.noise_sigma_grey = c.noise_sigma_grey;
     cfg.sim.seed = c.seed;
     cfg.sim.look_family = c.looks.clone();
+    if let Some(ms) = c.exposure_ms {
+        cfg.sim.exposure_ms = ms;
+        cfg.camera.exposure_us = (ms > 0.0).then_some(ms * 1e3);
+    }
     // Real time: in free-run the camera renders far ahead of the relay, and the release would
     // land outside the recording.
     cfg.sim.pace = hw_sim::Pace::RealTime;
@@ -511,8 +519,16 @@ pub fn repeated_sweep(quick: bool, repeat: u32) -> Vec<Case> {
 /// Runs the sweep (`repeat` times) and prints the accuracy table. `looks`: None for the
 /// default look, or a family of `hw_sim::Look::FAMILIES` or "varied" (each experiment draws
 /// its own look from its seed). Sessions are recorded in a folder of their own under `dir`,
-/// removed afterwards; with `keep`, in `dir` itself, and kept.
-pub fn accuracy(quick: bool, repeat: u32, looks: Option<&str>, dir: &Path, keep: bool) -> String {
+/// removed afterwards; with `keep`, in `dir` itself, and kept. `exposure_ms`: the camera's
+/// exposure (`Case::exposure_ms`).
+pub fn accuracy(
+    quick: bool,
+    repeat: u32,
+    looks: Option<&str>,
+    exposure_ms: Option<f64>,
+    dir: &Path,
+    keep: bool,
+) -> String {
     let work = if keep {
         dir.to_path_buf()
     } else {
@@ -522,6 +538,7 @@ pub fn accuracy(quick: bool, repeat: u32, looks: Option<&str>, dir: &Path, keep:
         .into_iter()
         .map(|c| Case {
             looks: looks.map(str::to_string),
+            exposure_ms,
             ..c
         })
         .map(|c| {
@@ -551,6 +568,7 @@ fn case_of(cfg: &Config) -> Case {
         height: cfg.camera.height,
         seed: cfg.sim.seed,
         looks: cfg.sim.look_family.clone(),
+        exposure_ms: cfg.camera.exposure_us.map(|us| us * 1e-3),
     }
 }
 
@@ -576,6 +594,7 @@ pub fn accuracy_of_sessions(sessions: &[std::path::PathBuf]) -> String {
                         height: 0,
                         seed: 0,
                         looks: None,
+                        exposure_ms: None,
                     };
                     return (c, out);
                 }
@@ -669,6 +688,7 @@ mod tests {
             height: if width == 240 { 192 } else { 480 },
             seed,
             looks: None,
+            exposure_ms: None,
         }
     }
 
@@ -749,6 +769,7 @@ mod tests {
                     height: 192,
                     seed: k as u64,
                     looks: Some("varied".into()),
+                    exposure_ms: None,
                 };
                 let r = CaseResult {
                     look_family: f.clone(),

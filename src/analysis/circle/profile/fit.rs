@@ -39,8 +39,9 @@ pub(super) enum Layering {
 /// `max_move_px` of its start, and its radius within a pixel of the start's; a disc's radius
 /// is held where `radii_px` gives it (not with `InFront`, whose radii keep their ratio).
 /// `rounds`: all of them, the box rounds only (then the result keeps what the final round
-/// needs), or the final round only from such a kept state. Returns the discs and their fitted
-/// edge widths s, px.
+/// needs), or the final round only from such a kept state. `smears_px`: how far each disc
+/// moved over the exposure (`FirstPassDisc::smear_px`; zero for none). Returns the discs and
+/// their fitted edge widths s, px.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fit_grey_levels<const P: usize, const N: usize>(
     pixels: &[RingPixel],
@@ -48,6 +49,7 @@ pub(super) fn fit_grey_levels<const P: usize, const N: usize>(
     background: f64,
     layering: Layering,
     radii_px: [Option<f64>; N],
+    smears_px: [[f64; 2]; N],
     max_move_px: f64,
     convolved: bool,
     rounds: Rounds<'_>,
@@ -70,12 +72,7 @@ where
         Layering::InFront(f) if N == 2 => Some(1 - f),
         _ => None,
     };
-    let model = PixelModel {
-        layering,
-        hiding,
-        back_disc,
-        convolved,
-    };
+    let model = PixelModel::new(layering, hiding, back_disc, convolved, &smears_px);
     let eval = |p: &Vp<P>, px: &RingPixel, area: bool| model.eval::<P, N>(p, px, area);
     let mut p = Vp::<P>::zeros();
     if let Rounds::AreaFrom(kept) = rounds {
@@ -161,7 +158,7 @@ where
     }
     // A disc of known radius (`radii_px`: a lone one cut by the view's border, whose visible
     // arc fixes its radius and its centre across the cut poorly together; a blurred one held
-    // at its neighbours', `HeldRadius`) is held at it the same way, as R − radius.
+    // at its neighbours', `FirstPassDisc`) is held at it the same way, as R − radius.
     if ties[0].is_none() {
         for (k, r) in radii_px.iter().enumerate().take(2) {
             ties[k] = r.map(|r| (usize::MAX, 1 + DISC_PARAMS * k + 2, r));

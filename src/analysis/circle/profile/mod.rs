@@ -78,7 +78,7 @@ pub fn profile_fit_known_radius(
 /// round started from where the first pass's box rounds stopped costs a third of a fit from
 /// the edge points (docs/performance.md, session 38).
 ///
-/// `held`: where the edge is found blurred, the refit holds the radius at it (`HeldRadius`).
+/// `held`: where the edge is found blurred, the refit holds the radius at it (`FirstPassDisc`).
 #[allow(clippy::too_many_arguments)]
 pub fn profile_plan(
     img: &GreyImage,
@@ -88,7 +88,7 @@ pub fn profile_plan(
     other: Option<([f64; 2], f64)>,
     dots: &[DotMask],
     radius_px: Option<f64>,
-    held: Option<HeldRadius>,
+    held: Option<FirstPassDisc>,
 ) -> Option<(CircleFit, ProfilePlan)> {
     let near_other = |u: f64, v: f64| {
         other.is_some_and(|(oc, or)| dist(u - oc[0], v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
@@ -99,6 +99,7 @@ pub fn profile_plan(
         ..*start
     };
     let min_sectors = min_sectors(radius_px);
+    let smear_px = held.map_or([0.0; 2], |h| h.smear_px);
     // `tie`: the radius the fit holds (`radius_px`, or on the blurred refit `held`'s).
     let fit = |disc: &CircleFit, inner_px: f64, max_move_px: f64, tie: Option<f64>| {
         let pixels = ring_pixels(img, view, &[disc], dots, near_other, min_sectors, inner_px)?;
@@ -113,6 +114,7 @@ pub fn profile_plan(
             background,
             Layering::Apart,
             [tie],
+            [smear_px],
             max_move_px,
             convolved,
             Rounds::Box,
@@ -125,6 +127,7 @@ pub fn profile_plan(
             max_move_px,
             radius_px,
             held,
+            smear_px,
             other,
             background,
             kept: f.kept?,
@@ -164,7 +167,7 @@ pub fn profile_plan(
     let Some(inner_px) = blurred_inner_band(&first.1) else {
         return Some((first.0, first.2));
     };
-    // The refit holds the radius the frames round it show (`HeldRadius`), where it is given.
+    // The refit holds the radius the frames round it show (`FirstPassDisc`), where it is given.
     let tie = radius_px.or(held.map(|h| h.radius_px));
     let again = CircleFit {
         centre: first.0.centre,
@@ -202,11 +205,13 @@ pub fn profile_finish(
     view: &View,
     plan: &ProfilePlan,
     dots: &[DotMask],
-    held: Option<HeldRadius>,
+    held: Option<FirstPassDisc>,
 ) -> Option<CircleFit> {
     let held = held.filter(|_| plan.radius_px.is_none());
     let hold_anew = held.is_some() && plan.inner_px > PROFILE_BAND_PX && plan.held != held;
-    if !hold_anew {
+    // A disc smeared over the exposure is modelled so from its first round on.
+    let smear_anew = held.map_or([0.0; 2], |h| h.smear_px) != plan.smear_px;
+    if !hold_anew && !smear_anew {
         if let Some(fit) = finish_unchanged(img, view, plan, dots) {
             return fit;
         }
@@ -253,6 +258,7 @@ fn finish_unchanged(
         plan.background,
         Layering::Apart,
         [plan.radius_px.or(plan.held.map(|h| h.radius_px))],
+        [plan.smear_px],
         plan.max_move_px,
         plan.inner_px > PROFILE_BAND_PX,
         Rounds::AreaFrom(&plan.kept),
@@ -276,8 +282,10 @@ pub struct ProfilePlan {
     inner_px: f64,
     max_move_px: f64,
     radius_px: Option<f64>,
-    /// The radius a blurred refit held (`HeldRadius`).
-    held: Option<HeldRadius>,
+    /// The radius a blurred refit held (`FirstPassDisc`).
+    held: Option<FirstPassDisc>,
+    /// The smear the fit modelled (`FirstPassDisc::smear_px`).
+    smear_px: [f64; 2],
     other: Option<([f64; 2], f64)>,
     background: f64,
     kept: Kept,
@@ -286,7 +294,11 @@ pub struct ProfilePlan {
     fallback: Option<Box<ProfilePlan>>,
 }
 
-/// A sphere's radius in one view as the frames round it show it: what the second pass holds a
+/// What the first pass measured of a disc that the second pass's fit of it uses: the sphere's
+/// radius in this view as the frames round it show it, and how far the disc moved while the
+/// shutter was open (`smear_px`).
+///
+/// The radius is what the second pass holds a
 /// blurred disc's radius at (`profile_plan`, `profile_fit_pair`). Why: on a defocused sphere
 /// the blur, the shading's slope, its harmonic round the disc and the dots the blur spreads
 /// over the face all explain the same few pixels, and a free radius lets the fit trade them
@@ -298,7 +310,7 @@ pub struct ProfilePlan {
 /// sphere's known size would not (held at that, the same rigs gave 0.117 px). Held: 0.099 px,
 /// and with pairs near contact held too, 0.093.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct HeldRadius {
+pub struct FirstPassDisc {
     /// Where the first pass put the disc, px.
     pub centre_px: [f64; 2],
     /// The median of the sphere's radii in this view over the frames round this one, px.
@@ -306,19 +318,25 @@ pub struct HeldRadius {
     /// This frame's own first-pass radius less that median, px: the misfit a held fit no
     /// longer shows, carried into its centre's σ as `radius_misfit` would have (`held_widened`).
     pub stray_px: f64,
+    /// How far the disc moved over the exposure, px (its image velocity from the first pass's
+    /// centres times `camera.exposure_us`): the grey-level model is smeared along it
+    /// (`PixelModel`). Zero where the exposure is not given or the smear is below
+    /// `SMEAR_MIN_PX`.
+    pub smear_px: [f64; 2],
 }
 
-impl HeldRadius {
+impl FirstPassDisc {
     /// The one of `held` whose disc lies within a third of its radius of `centre` (the fit's
     /// start), if any.
-    pub fn near(held: &[HeldRadius], centre: [f64; 2]) -> Option<HeldRadius> {
+    pub fn near(held: &[FirstPassDisc], centre: [f64; 2]) -> Option<FirstPassDisc> {
         held.iter()
             .filter(|h| {
                 dist(h.centre_px[0] - centre[0], h.centre_px[1] - centre[1]) < h.radius_px / 3.0
             })
             .min_by(|a, b| {
-                let d =
-                    |h: &HeldRadius| dist(h.centre_px[0] - centre[0], h.centre_px[1] - centre[1]);
+                let d = |h: &FirstPassDisc| {
+                    dist(h.centre_px[0] - centre[0], h.centre_px[1] - centre[1])
+                };
                 d(a).total_cmp(&d(b))
             })
             .copied()
@@ -327,7 +345,7 @@ impl HeldRadius {
 
 /// A fit whose radius was held at `held`'s: its centre's σ carries the first pass's stray of the
 /// radius, half its square on each axis (as `radius_misfit::widen` adds it to a free fit's).
-fn held_widened(fit: CircleFit, held: Option<HeldRadius>) -> CircleFit {
+fn held_widened(fit: CircleFit, held: Option<FirstPassDisc>) -> CircleFit {
     let Some(h) = held else { return fit };
     let add = 0.5 * h.stray_px * h.stray_px;
     CircleFit {
@@ -395,13 +413,14 @@ pub fn profile_fit_pair(
     starts: [&CircleFit; 2],
     background: f64,
     dots: &[DotMask],
-    held: [Option<HeldRadius>; 2],
+    held: [Option<FirstPassDisc>; 2],
 ) -> Option<[CircleFit; 2]> {
     let [a, b] = starts;
     let apart = (a.centre[0] - b.centre[0]).hypot(a.centre[1] - b.centre[1]);
     if apart < a.radius + b.radius - PAIR_OVERLAP_PX {
         return None;
     }
+    let smears = held.map(|h| h.map_or([0.0; 2], |h| h.smear_px));
     let fit = |discs: [&CircleFit; 2], inner_px: f64, ties: [Option<f64>; 2]| {
         let pixels = ring_pixels(img, view, &discs, dots, |_, _| false, 20, inner_px)?;
         fit_grey_levels::<21, 2>(
@@ -410,6 +429,7 @@ pub fn profile_fit_pair(
             background,
             Layering::Apart,
             ties,
+            smears,
             1.0,
             false,
             Rounds::All,
@@ -485,6 +505,9 @@ pub fn profile_fit_behind(
         background,
         Layering::InFront(front),
         [None; 2],
+        // (Not smeared: a crescent's frames are those round the impact, where the motion
+        // changes within the exposure.)
+        [[0.0; 2]; 2],
         1.0,
         false,
         Rounds::All,
@@ -541,6 +564,7 @@ mod tests {
                 30.0,
                 Layering::Apart,
                 [None],
+                [[0.0; 2]],
                 2.5,
                 false,
                 rounds,
