@@ -125,7 +125,9 @@ pub struct CameraConfig {
     pub height: u32,
     pub pixel_format: PixelFormat,
     pub frame_rate_hz: f64,
-    /// Exposure; None leaves the camera's own setting.
+    /// Exposure; None leaves the camera's own setting. The analysis reads it too: a disc that
+    /// moved half a pixel or more while the shutter was open is fitted as smeared
+    /// (`circle::FirstPassDisc::smear_px`); None, it takes the shutter as short.
     pub exposure_us: Option<f64>,
     /// How the camera starts each exposure: "free_run" (its own clock), "software" (impactcam
     /// triggers each frame), or "hardware" (a trigger input, `trigger_line`). Aravis only.
