@@ -63,7 +63,7 @@ pub(super) fn held_radii(obs: &[FrameObs], exposure_s: f64) -> FirstPassDiscs {
                 centre_px: m.centre_px,
                 radius_px: 0.5 * median_px,
                 stray_px,
-                smear_px: smear_px(obs, k, s, vi, exposure_s),
+                smear_px: smear_px(obs, k, s, vi, exposure_s, median_px),
             });
     }
     out
@@ -80,8 +80,18 @@ const SMEAR_MIN_PX: f64 = 0.5;
 /// frame before and to the frame after differ by more than a fifth, the motion changed there
 /// (an impact, a bounce): the side whose own neighbour agrees with it is taken, so that a
 /// frame just before an impact is not smeared with the velocity after it. Zero where neither
-/// neighbour was measured, or the smear is below `SMEAR_MIN_PX`.
-fn smear_px(obs: &[FrameObs], k: usize, s: usize, vi: usize, exposure_s: f64) -> [f64; 2] {
+/// neighbour was measured, or the smear is below `SMEAR_MIN_PX` or longer than the disc's
+/// `diameter_px`: on the rig at 1 ms the fastest sphere moves 3 px, under half its diameter, and
+/// a longer smear comes from a first-pass centre put on something else (a name swapped, two
+/// discs taken for one), which the fit would be dragged along.
+fn smear_px(
+    obs: &[FrameObs],
+    k: usize,
+    s: usize,
+    vi: usize,
+    exposure_s: f64,
+    diameter_px: f64,
+) -> [f64; 2] {
     if exposure_s <= 0.0 {
         return [0.0; 2];
     }
@@ -118,7 +128,9 @@ fn smear_px(obs: &[FrameObs], k: usize, s: usize, vi: usize, exposure_s: f64) ->
         (None, None) => return [0.0; 2],
     };
     let smear = [v[0] * exposure_s, v[1] * exposure_s];
-    if norm(smear) < SMEAR_MIN_PX {
+    let length = norm(smear);
+    // (A NaN length, from a NaN diameter or centre, is not modelled either.)
+    if !(SMEAR_MIN_PX..=diameter_px).contains(&length) {
         [0.0; 2]
     } else {
         smear
@@ -267,6 +279,16 @@ mod tests {
             .values()
             .flatten()
             .all(|d| d.smear_px == [0.0, 0.0]));
+        // A first-pass centre 40 px off (another disc's): its own frame is not smeared (both
+        // sides give 25 px, longer than the disc), and its neighbours take their steady sides.
+        let mut blunder = obs.clone();
+        blunder[10].spheres[0][0].as_mut().unwrap().centre_px = [60.0, 10.0];
+        let d = held_radii(&blunder, 0.6e-3);
+        assert_eq!(d[&(10, 0)][0].smear_px, [0.0, 0.0]);
+        for k in [9, 11] {
+            let s = d[&(k, 0)][0].smear_px;
+            assert!(near(s[0], 1.2) && s[1].abs() < 1e-9, "frame {k}: {s:?}");
+        }
         // Below half a pixel a smear is not modelled.
         assert!(held_radii(&obs, 0.24e-3)
             .values()
