@@ -89,27 +89,21 @@ impl Renderer {
 
         let exposure = self.cfg.exposure_ms / 1000.0;
         let (mid, _) = state_at(t_mid_s);
-        let max_px_per_exposure = self
+        let px_per_mm = self
             .scene
             .views
             .iter()
             .map(|v| v.px_per_mm)
-            .fold(0.0, f64::max)
-            * mid.iter().map(|b| b.vel_mm_s.norm()).fold(0.0, f64::max)
-            * exposure;
+            .fold(0.0, f64::max);
+        let max_px_per_exposure =
+            px_per_mm * mid.iter().map(|b| b.vel_mm_s.norm()).fold(0.0, f64::max) * exposure;
         // Instants 0.5 px apart up to a pixel of smear (the default exposure's, which recorded
         // sessions were made with); beyond, 0.25 px apart: at 0.5 px apart a sphere smeared by
         // 3–4 px was a staircase of copies, not a streak. At most 16 for a sphere of the lab's
         // 240 × 192 size (6.85 px in radius), fewer (not below 8) as its area grows: the
         // renderer must keep up with the camera's clock, and at 640 × 480 sixteen instants of a
         // 1 ms exposure did not (the recorder gave up after a second without a frame).
-        let sphere_px = self
-            .scene
-            .views
-            .iter()
-            .map(|v| v.px_per_mm)
-            .fold(0.0, f64::max)
-            * mid.iter().map(|b| b.radius_mm).fold(0.0, f64::max);
+        let sphere_px = px_per_mm * mid.iter().map(|b| b.radius_mm).fold(0.0, f64::max);
         let most = ((16.0 * (6.85 / sphere_px.max(1e-9)).powi(2)) as usize).clamp(8, 16);
         let substeps = if max_px_per_exposure <= 1.0 {
             ((max_px_per_exposure * 2.0).ceil() as usize).clamp(1, 8)
