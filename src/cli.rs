@@ -299,6 +299,11 @@ pub(crate) enum BenchWhat {
         /// the analysis (`camera.exposure_us`). Without it, hw-sim's 0.1 ms, not stated.
         #[arg(long)]
         exposure_ms: Option<f64>,
+        /// The lamps flicker by this much, per cent of their mean light, at 100 Hz (a lamp on
+        /// 50 Hz mains; `sim.flicker_percent`); needs `--looks` other than `default`. The
+        /// analysis is not told.
+        #[arg(long)]
+        flicker_percent: Option<f64>,
         /// Where sessions are recorded while they are analysed (removed afterwards, unless
         /// `--keep`).
         #[arg(long, default_value = ".")]
@@ -310,7 +315,7 @@ pub(crate) enum BenchWhat {
         /// Record nothing: analyse these sessions, recorded before with `--keep` (or
         /// directories of them), each with its own config and `truth.json`. Two builds then
         /// differ only by what they do, not by which experiments hw-sim filmed.
-        #[arg(long, num_args = 1.., conflicts_with_all = ["quick", "repeat", "looks", "exposure_ms", "keep"])]
+        #[arg(long, num_args = 1.., conflicts_with_all = ["quick", "repeat", "looks", "exposure_ms", "flicker_percent", "keep"])]
         sessions: Vec<PathBuf>,
     },
 }

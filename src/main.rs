@@ -422,6 +422,7 @@ fn real_main(cli: Cli) -> Result<i32> {
                 repeat,
                 looks,
                 exposure_ms,
+                flicker_percent,
                 dir,
                 keep,
                 sessions,
@@ -448,11 +449,20 @@ fn real_main(cli: Cli) -> Result<i32> {
                         bail!("--exposure-ms: {ms} is out of range, expected 0 to 100 (ms the shutter is open)");
                     }
                 }
+                if let Some(p) = flicker_percent {
+                    if !(p.is_finite() && (0.0..=100.0).contains(&p)) {
+                        bail!("--flicker-percent: {p} is out of range, expected 0 to 100 (per cent of the lamps' mean light)");
+                    }
+                    if looks.is_none() {
+                        bail!("--flicker-percent: needs --looks other than default (hw-sim's default render has no lamp to flicker)");
+                    }
+                }
                 let text = impactcam::bench::accuracy::accuracy(
                     quick,
                     repeat,
                     looks.as_deref(),
                     exposure_ms,
+                    flicker_percent,
                     &dir,
                     keep,
                 );

@@ -6,6 +6,17 @@ use crate::look::Look;
 use crate::physics::Material;
 use serde::{Deserialize, Serialize};
 
+/// Mains at 50 Hz: a lamp's light peaks twice a cycle.
+const DEFAULT_FLICKER_HZ: f64 = 100.0;
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+fn is_default_flicker_hz(x: &f64) -> bool {
+    *x == DEFAULT_FLICKER_HZ
+}
+
 /// How the simulated camera's clock runs.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
@@ -60,6 +71,16 @@ pub struct LabConfig {
     pub shot_noise_e_per_grey: f64,
     /// Exposure time; the image is averaged over it (motion blur). 0 = instantaneous.
     pub exposure_ms: f64,
+    /// The lamps' flicker (a mains-driven lamp's light rises and falls at twice the mains
+    /// frequency; a camera at 1000 fps sees it frame to frame): the light's modulation depth,
+    /// per cent of its mean ((max − min)/(max + min), as lighting data sheets give it), on
+    /// everything a look lights, ground and spheres alike; 0: steady. Needs a look.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub flicker_percent: f64,
+    /// The flicker's frequency, Hz (100 under 50 Hz mains, 120 under 60 Hz); its phase at the
+    /// recording's start follows from the seed.
+    #[serde(skip_serializing_if = "is_default_flicker_hz")]
+    pub flicker_hz: f64,
     /// Samples per pixel side for anti-aliasing (4 → 16 samples).
     pub supersample: u32,
     /// Samples per pixel side where a sphere's limb or a marker's rim crosses the pixel. A
@@ -130,6 +151,8 @@ impl Default for LabConfig {
             noise_sigma_grey: 2.0,
             shot_noise_e_per_grey: 0.0,
             exposure_ms: 0.1,
+            flicker_percent: 0.0,
+            flicker_hz: DEFAULT_FLICKER_HZ,
             supersample: 4,
             edge_supersample: 16,
             drop_frame_ids: Vec::new(),
@@ -246,6 +269,11 @@ impl LabConfig {
             1e6,
         )?;
         range("exposure_ms", self.exposure_ms, 0.0, 100.0)?;
+        range("flicker_percent", self.flicker_percent, 0.0, 100.0)?;
+        range("flicker_hz", self.flicker_hz, 1.0, 10000.0)?;
+        if self.flicker_percent > 0.0 && drawn.look.is_none() {
+            return Err("sim.flicker_percent: a flickering lamp needs a look (sim.look or sim.look_family); the default render has no lamp to flicker".into());
+        }
         range("supersample", self.supersample as f64, 1.0, 16.0)?;
         range("edge_supersample", self.edge_supersample as f64, 1.0, 32.0)?;
         range("drop_probability", self.drop_probability, 0.0, 0.5)?;

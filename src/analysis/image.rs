@@ -32,6 +32,10 @@ pub struct GreyImage {
     /// it covers a pixel the normalised frame holds its shading minus this; None where nothing
     /// was subtracted (all zero).
     pub ground: Option<Arc<[f32]>>,
+    /// Views where this frame's light differed from the backdrop's (a flickering lamp,
+    /// `backdrop`): there the backdrop's shape was subtracted at that gain, and what a sphere
+    /// hides is `gain·ground`. Empty under a steady lamp.
+    pub ground_light: Vec<GroundLight>,
     /// The rectangles [x0, y0, x1, y1) (exclusive ends) of views the normalisation inverted
     /// (backlit: the spheres darker than their ground); empty where none was.
     pub inverted: Arc<[[usize; 4]]>,
@@ -40,6 +44,14 @@ pub struct GreyImage {
     /// an overexposed sphere's level there is only known to be at least what it shows
     /// (`backdrop`). Empty where nothing was marked.
     pub saturated: Vec<bool>,
+}
+
+/// One view's frame lit differently from its backdrop (`GreyImage::ground_light`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GroundLight {
+    /// [x0, y0, x1, y1) (exclusive ends).
+    pub rect: [usize; 4],
+    pub gain: f32,
 }
 
 /// A raw level at or above this is the top of the camera's range (8-bit 255; a 16-bit
@@ -53,6 +65,7 @@ impl GreyImage {
             height: 0,
             data: Vec::new(),
             ground: None,
+            ground_light: Vec::new(),
             inverted: Arc::from([]),
             saturated: Vec::new(),
         }
@@ -63,6 +76,7 @@ impl GreyImage {
         self.width = width;
         self.height = height;
         self.ground = None;
+        self.ground_light.clear();
         self.inverted = Arc::from([]);
         self.saturated.clear();
         self.data.clear();
@@ -105,10 +119,19 @@ impl GreyImage {
     /// `ground` at pixel (u, v): what stands behind a sphere there, above the ground's level.
     #[inline]
     pub fn ground_at(&self, u: usize, v: usize) -> f32 {
-        self.ground
+        let g = self
+            .ground
             .as_ref()
             .and_then(|g| g.get(v * self.width + u).copied())
-            .unwrap_or(0.0)
+            .unwrap_or(0.0);
+        match self
+            .ground_light
+            .iter()
+            .find(|l| u >= l.rect[0] && v >= l.rect[1] && u < l.rect[2] && v < l.rect[3])
+        {
+            Some(l) => l.gain * g,
+            None => g,
+        }
     }
 
     /// The grey level at pixel (u, v) as a sphere that covers it shows it: the normalised level

@@ -8,6 +8,7 @@
 //! what lets the simulator keep up with 640×480 at 2000 fps, where drawing a fresh Gaussian per
 //! pixel per frame would not.
 
+mod flicker;
 mod look;
 
 use crate::config::{LabConfig, Scene, ViewSpec};
@@ -28,6 +29,8 @@ pub struct Renderer {
     rng: Rng,
     /// Present when the config gives a look (`sim.look`); None is the original render.
     look: Option<LookState>,
+    /// The lamps' flicker, when the config gives one (`sim.flicker_percent`).
+    flicker: Option<flicker::Flicker>,
 }
 
 /// What one sphere looks like during one sub-exposure instant.
@@ -50,6 +53,7 @@ impl Renderer {
             push_pixel(&mut background, v, bytes_per_pixel);
         }
         let look = cfg.look.clone().map(|l| LookState::new(l, &scene, &cfg));
+        let flicker = flicker::Flicker::new(&cfg, seed);
         Renderer {
             scene,
             cfg,
@@ -58,6 +62,7 @@ impl Renderer {
             noise,
             rng,
             look,
+            flicker,
         }
     }
 
@@ -134,7 +139,11 @@ impl Renderer {
             })
             .collect();
         if self.look.is_some() {
-            self.render_with_look(&poses, out);
+            let gain = self
+                .flicker
+                .as_ref()
+                .map_or(1.0, |f| f.gain(t_mid_s, exposure));
+            self.render_with_look(&poses, gain, out);
             return;
         }
         for vi in 0..self.scene.views.len() {
@@ -143,8 +152,9 @@ impl Renderer {
     }
 
     /// The frame under a look: the (defocused) backdrop with fresh noise everywhere, then each
-    /// view's sphere boxes drawn noise-free over the sharp backdrop, blurred, and noised.
-    fn render_with_look(&mut self, poses: &[[Pose; 2]], out: &mut Vec<u8>) {
+    /// view's sphere boxes drawn noise-free over the sharp backdrop, blurred, and noised. `gain`:
+    /// the lamps' light over this exposure against their mean (1 without flicker).
+    fn render_with_look(&mut self, poses: &[[Pose; 2]], gain: f64, out: &mut Vec<u8>) {
         let Some(st) = self.look.as_ref() else {
             return;
         };
@@ -156,7 +166,14 @@ impl Renderer {
         let off = (self.rng.next_u64() as usize) % TABLE_PIXELS;
         for (i, &g) in st.blurred().iter().enumerate() {
             let k = (off + i) % TABLE_PIXELS;
-            look::write_noisy(&self.cfg, out, i, g as f64, self.noise[k] as f64, bpp);
+            look::write_noisy(
+                &self.cfg,
+                out,
+                i,
+                gain * g as f64,
+                self.noise[k] as f64,
+                bpp,
+            );
         }
         let margin = st.margin_px();
         let ss = self.cfg.supersample.max(1) as usize;
@@ -248,7 +265,7 @@ impl Renderer {
                 for v in b[1]..=b[3] {
                     for u in b[0]..=b[2] {
                         let idx = v as usize * width + u as usize;
-                        let val = buf[(v - e[1]) as usize * bw + (u - e[0]) as usize] as f64;
+                        let val = gain * buf[(v - e[1]) as usize * bw + (u - e[0]) as usize] as f64;
                         let k = (self.rng.next_u64() as usize) % TABLE_PIXELS;
                         look::write_noisy(&self.cfg, out, idx, val, self.noise[k] as f64, bpp);
                     }

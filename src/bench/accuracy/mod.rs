@@ -38,6 +38,9 @@ pub struct Case {
     /// The camera's exposure, ms (`sim.exposure_ms`, and `camera.exposure_us` for the
     /// analysis); None: hw-sim's default, 0.1 ms, not stated in the config.
     pub exposure_ms: Option<f64>,
+    /// The lamps' flicker, per cent (`sim.flicker_percent`, 100 Hz; needs a look); None: a
+    /// steady lamp. The analysis is not told.
+    pub flicker_percent: Option<f64>,
 }
 
 /// The sweep: every tube angle with obliquities from head-on to grazing (both branches), at
@@ -57,6 +60,7 @@ pub fn sweep(quick: bool) -> Vec<Case> {
             seed,
             looks: None,
             exposure_ms: None,
+            flicker_percent: None,
         });
     };
     if quick {
@@ -126,6 +130,9 @@ pub fn case_config(c: &Case, dir: &Path) -> Config {
     if let Some(ms) = c.exposure_ms {
         cfg.sim.exposure_ms = ms;
         cfg.camera.exposure_us = (ms > 0.0).then_some(ms * 1e3);
+    }
+    if let Some(p) = c.flicker_percent {
+        cfg.sim.flicker_percent = p;
     }
     // Real time: in free-run the camera renders far ahead of the relay, and the release would
     // land outside the recording.
@@ -520,12 +527,13 @@ pub fn repeated_sweep(quick: bool, repeat: u32) -> Vec<Case> {
 /// default look, or a family of `hw_sim::Look::FAMILIES` or "varied" (each experiment draws
 /// its own look from its seed). Sessions are recorded in a folder of their own under `dir`,
 /// removed afterwards; with `keep`, in `dir` itself, and kept. `exposure_ms`: the camera's
-/// exposure (`Case::exposure_ms`).
+/// exposure (`Case::exposure_ms`); `flicker_percent`: the lamps' (`Case::flicker_percent`).
 pub fn accuracy(
     quick: bool,
     repeat: u32,
     looks: Option<&str>,
     exposure_ms: Option<f64>,
+    flicker_percent: Option<f64>,
     dir: &Path,
     keep: bool,
 ) -> String {
@@ -539,6 +547,7 @@ pub fn accuracy(
         .map(|c| Case {
             looks: looks.map(str::to_string),
             exposure_ms,
+            flicker_percent,
             ..c
         })
         .map(|c| {
@@ -569,6 +578,7 @@ fn case_of(cfg: &Config) -> Case {
         seed: cfg.sim.seed,
         looks: cfg.sim.look_family.clone(),
         exposure_ms: cfg.camera.exposure_us.map(|us| us * 1e-3),
+        flicker_percent: (cfg.sim.flicker_percent > 0.0).then_some(cfg.sim.flicker_percent),
     }
 }
 
@@ -595,6 +605,7 @@ pub fn accuracy_of_sessions(sessions: &[std::path::PathBuf]) -> String {
                         seed: 0,
                         looks: None,
                         exposure_ms: None,
+                        flicker_percent: None,
                     };
                     return (c, out);
                 }
@@ -689,6 +700,7 @@ mod tests {
             seed,
             looks: None,
             exposure_ms: None,
+            flicker_percent: None,
         }
     }
 
@@ -770,6 +782,7 @@ mod tests {
                     seed: k as u64,
                     looks: Some("varied".into()),
                     exposure_ms: None,
+                    flicker_percent: None,
                 };
                 let r = CaseResult {
                     look_family: f.clone(),

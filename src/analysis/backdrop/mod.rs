@@ -10,9 +10,12 @@
 //! a quantile on the ground's side of the spheres (the 20th percentile for bright spheres, the
 //! 80th for dark ones) leaves them out as long as no pixel is covered in more than 80 % of the
 //! sampled frames. With fewer than `MIN_FRAMES` frames there is no backdrop, only the polarity.
+//! Where the lamps flicker, each frame's view is matched to the still first (`gain`).
+
+mod gain;
 
 use super::geometry::View;
-use super::image::{GreyImage, SATURATED_GREY};
+use super::image::{GreyImage, GroundLight, SATURATED_GREY};
 use super::report::Source;
 use super::source::FrameSource;
 use super::AnalysisError;
@@ -41,6 +44,8 @@ struct ViewBackdrop {
     still: Option<Vec<f32>>,
     /// The level the ground is given after normalisation.
     level: f32,
+    /// The still in blocks, where its shape can tell a frame's gain from an offset.
+    blocks: Option<gain::Blocks>,
 }
 
 /// The per-view normalisation of a recording's frames.
@@ -74,10 +79,9 @@ impl Backdrop {
             src.read(i, &mut img)?;
             frames.push(img);
         }
-        let Some(first) = frames.first() else {
+        let Some((w, h)) = frames.first().map(|f| (f.width, f.height)) else {
             return Ok(Backdrop::default());
         };
-        let (w, h) = (first.width, first.height);
         let mut out = Vec::with_capacity(views.len());
         for view in views {
             let [x, y, vw, vh] = view.region.map(|v| v as usize);
@@ -90,24 +94,34 @@ impl Backdrop {
                     GROUND_QUANTILE
                 };
                 let idx = ((k - 1) as f64 * q).round() as usize;
-                let mut column = vec![0f32; k];
-                let mut still = Vec::with_capacity((rect[2] - rect[0]) * (rect[3] - rect[1]));
-                for v in rect[1]..rect[3] {
-                    for u in rect[0]..rect[2] {
-                        for (c, f) in column.iter_mut().zip(&frames) {
-                            *c = f.at(u, v);
-                        }
-                        column.select_nth_unstable_by(idx, f32::total_cmp);
-                        still.push(column[idx]);
+                let still = quantile(&frames, rect, idx);
+                // Under a flickering lamp the samples' light decides their order at every
+                // pixel alike, so the quantile is one frame's, noise and all: a fixed pattern
+                // of noise subtracted from every frame. Each sample is brought to the still's
+                // light first, and the quantile taken again.
+                let Some(blocks) = gain::Blocks::new(&still, rect) else {
+                    return still;
+                };
+                let mut relit = false;
+                for f in frames.iter_mut() {
+                    // (A sample lit a tenth of the still or less is left as it is: brought up,
+                    // its noise would be ten times the others'.)
+                    if let Some(l) = blocks.light(f).filter(|l| l.gain > 0.1) {
+                        relit = true;
+                        l.undo(f, rect);
                     }
                 }
-                still
+                if relit {
+                    quantile(&frames, rect, idx)
+                } else {
+                    still
+                }
             });
             let mut ground: Vec<f32> = match &still {
                 Some(s) => s.clone(),
                 None => (rect[1]..rect[3])
                     .flat_map(|v| (rect[0]..rect[2]).map(move |u| (u, v)))
-                    .map(|(u, v)| first.at(u, v))
+                    .map(|(u, v)| frames[0].at(u, v))
                     .collect(),
             };
             let level = if ground.is_empty() {
@@ -117,12 +131,14 @@ impl Backdrop {
                 *ground.select_nth_unstable_by(mid, f32::total_cmp).1
             };
             let level = if dark_spheres { 255.0 - level } else { level };
+            let blocks = still.as_ref().and_then(|s| gain::Blocks::new(s, rect));
             out.push(ViewBackdrop {
                 name: view.kind.name(),
                 rect,
                 dark_spheres,
                 still,
                 level,
+                blocks,
             });
         }
         // What a sphere in front of the backdrop hides: the subtracted still, bright side up,
@@ -161,12 +177,32 @@ impl Backdrop {
             .filter(|g| g.len() == img.width * img.height);
         img.inverted = self.inverted.clone();
         img.saturated.clear();
+        img.ground_light.clear();
         for vb in &self.views {
             let [x0, y0, x1, y1] = vb.rect;
             if x1 > img.width || y1 > img.height {
                 continue;
             }
             let rw = x1 - x0;
+            // The frame's light against the still's, where it differs (a flickering lamp): the
+            // still's shape about its median is subtracted at the frame's gain, so the ground
+            // comes out flat and what a sphere hides is that shape at that gain. The uniform
+            // part of the change (the fitted offset, and the gain at the median) is left in
+            // the frame, whose levels are measured per frame anyway; counted as hidden ground
+            // it would put every sphere of a backlit view in front of clutter.
+            let light = vb.blocks.as_ref().and_then(|b| b.light(img));
+            if let Some(l) = light {
+                img.ground_light.push(GroundLight {
+                    rect: vb.rect,
+                    gain: l.gain as f32,
+                });
+            }
+            // The still's median, as recorded (the level is it, turned where inverted).
+            let median = if vb.dark_spheres {
+                255.0 - vb.level
+            } else {
+                vb.level
+            };
             for v in y0..y1 {
                 for u in x0..x1 {
                     // Overexposed: marked before the level is moved (bright spheres only; in a
@@ -178,10 +214,14 @@ impl Backdrop {
                         img.saturated[v * w + u] = true;
                     }
                     let p = &mut img.data[v * w + u];
+                    let lit = |s: f32| match light {
+                        Some(l) => median + (l.gain * (s - median) as f64) as f32,
+                        None => s,
+                    };
                     let ground = vb
                         .still
                         .as_ref()
-                        .map(|s| s[(v - y0) * rw + (u - x0)])
+                        .map(|s| lit(s[(v - y0) * rw + (u - x0)]))
                         .unwrap_or(if vb.dark_spheres {
                             255.0 - vb.level
                         } else {
@@ -210,6 +250,22 @@ impl Backdrop {
             })
             .collect()
     }
+}
+
+/// Per pixel of `rect`, the `idx`-th smallest of the frames' values (row-major over the rect).
+fn quantile(frames: &[GreyImage], rect: [usize; 4], idx: usize) -> Vec<f32> {
+    let mut column = vec![0f32; frames.len()];
+    let mut still = Vec::with_capacity((rect[2] - rect[0]) * (rect[3] - rect[1]));
+    for v in rect[1]..rect[3] {
+        for u in rect[0]..rect[2] {
+            for (c, f) in column.iter_mut().zip(frames) {
+                *c = f.at(u, v);
+            }
+            column.select_nth_unstable_by(idx, f32::total_cmp);
+            still.push(column[idx]);
+        }
+    }
+    still
 }
 
 /// Whether what differs from a view's ground is darker than it: in each sampled frame, the
@@ -302,166 +358,4 @@ impl FrameSource for Normalised<'_> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::analysis::geometry::ViewKind;
-    use crate::analysis::source::MemoryFrames as Frames;
-
-    fn view(w: u32, h: u32) -> View {
-        let g = crate::config::ViewGeometry::shorthand([0, 0, w, h], 2.0, [0.0, 0.0], "+x", "-y");
-        View::from_config(ViewKind::Direct, &g)
-    }
-
-    /// A view with a bright static bar (a ruler), a smooth gradient and a disc crossing it,
-    /// `ground` and `disc` the levels: frame k has the disc at u = 8 + 3k.
-    fn recording(ground: f32, disc: f32, bar: f32) -> Frames {
-        let (w, h) = (96, 32);
-        let frames = (0..30)
-            .map(|k| {
-                let cu = 8.0 + 3.0 * k as f32;
-                (0..w * h)
-                    .map(|i| {
-                        let (u, v) = ((i % w) as f32, (i / w) as f32);
-                        let mut g = ground + 0.1 * u;
-                        if (26.0..30.0).contains(&v) {
-                            g = bar;
-                        }
-                        if (u - cu).hypot(v - 12.0) < 6.0 {
-                            g = disc;
-                        }
-                        // Deterministic "noise", ±1.
-                        g + ((i * 7919 + k * 104_729) % 3) as f32 - 1.0
-                    })
-                    .collect()
-            })
-            .collect();
-        Frames { w, h, frames }
-    }
-
-    #[test]
-    fn static_clutter_is_removed_and_the_moving_disc_stays() {
-        let mut src = recording(20.0, 180.0, 160.0);
-        let views = [view(96, 32)];
-        let b = Backdrop::estimate(&mut src, &views).expect("estimate");
-        assert!(!b.views[0].dark_spheres);
-        let mut img = GreyImage::new();
-        src.read(10, &mut img).expect("read");
-        b.apply(&mut img);
-        // The ruler and the gradient are gone: within the noise of the ground's level.
-        let level = b.views[0].level;
-        for u in [5, 40, 90] {
-            assert!(
-                (img.at(u, 28) - level).abs() < 3.0,
-                "ruler at u {u}: {}",
-                img.at(u, 28)
-            );
-            assert!((img.at(u, 2) - level).abs() < 3.0, "gradient at u {u}");
-        }
-        // The disc (at u = 38 in frame 10) is still ~160 above its ground.
-        assert!(img.at(38, 12) - level > 140.0);
-        assert!(b.warnings().is_empty());
-    }
-
-    /// A shaded disc of radius 7 px crossing a bright bar (a ruler): frame k has it at u =
-    /// 10.3 + 2.5k, v = 20.4, over the bar's rows 18–29 for most of its lower half. Pixels
-    /// are averaged over 4 × 4 points.
-    fn disc_over_a_bar(ground: f32, bar: f32) -> Frames {
-        let (w, h) = (120, 40);
-        let frames = (0..30)
-            .map(|k| {
-                let (cu, cv) = (10.3 + 2.5 * k as f64, 20.4);
-                (0..w * h)
-                    .map(|i| {
-                        let (u, v) = ((i % w) as f64, (i / w) as f64);
-                        let mut sum = 0.0;
-                        for a in 0..4 {
-                            for b in 0..4 {
-                                let (x, y) =
-                                    (u - 0.375 + 0.25 * a as f64, v - 0.375 + 0.25 * b as f64);
-                                let rho = (x - cu).hypot(y - cv) / 7.0;
-                                sum += if rho < 1.0 {
-                                    // Lit from the left: brighter there, an ambient floor.
-                                    let nz = (1.0 - rho * rho).sqrt();
-                                    60.0 + 130.0 * (0.8 * nz - 0.6 * (x - cu) / 7.0).max(0.0)
-                                } else if (18.0..30.0).contains(&y) {
-                                    bar as f64
-                                } else {
-                                    ground as f64
-                                };
-                            }
-                        }
-                        // Deterministic "noise", ±1.
-                        (sum / 16.0) as f32 + ((i * 7919 + k * 104_729) % 3) as f32 - 1.0
-                    })
-                    .collect()
-            })
-            .collect();
-        Frames { w, h, frames }
-    }
-
-    /// A disc in front of static clutter hides it: measured on the frame with the backdrop
-    /// subtracted, its centre comes out where it is only if the fit knows what the disc hides
-    /// (`GreyImage::ground`). Without it (edge points and the grey-level model both reading
-    /// the subtracted frame as the sphere) neither frame's disc was measured at all.
-    #[test]
-    fn a_disc_in_front_of_a_bright_bar_is_measured_where_it_is() {
-        for bar in [150.0, 90.0] {
-            let mut src = disc_over_a_bar(20.0, bar);
-            let views = [view(120, 40)];
-            let b = Backdrop::estimate(&mut src, &views).expect("estimate");
-            for k in [8, 13, 17] {
-                let mut img = GreyImage::new();
-                src.read(k, &mut img).expect("read");
-                b.apply(&mut img);
-                let truth = [10.3 + 2.5 * k as f64, 20.4];
-                let level = b.views[0].level as f64;
-                let fit = crate::analysis::circle::refine(
-                    &img,
-                    &views[0],
-                    [truth[0] + 0.8, truth[1] - 0.6],
-                    7.0,
-                    level,
-                    None,
-                    &[],
-                )
-                .expect("the disc is measured");
-                let err = (fit.centre[0] - truth[0]).hypot(fit.centre[1] - truth[1]);
-                assert!(
-                    fit.grey_levels && err < 0.03,
-                    "bar {bar}, frame {k}: centre {:?} is {err:.3} px from {truth:?}",
-                    fit.centre
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn a_backlit_view_is_inverted_and_said_so() {
-        let mut src = recording(200.0, 25.0, 60.0);
-        let views = [view(96, 32)];
-        let b = Backdrop::estimate(&mut src, &views).expect("estimate");
-        assert!(b.views[0].dark_spheres);
-        let mut img = GreyImage::new();
-        src.read(10, &mut img).expect("read");
-        b.apply(&mut img);
-        let level = b.views[0].level;
-        assert!(
-            img.at(38, 12) - level > 150.0,
-            "the dark disc comes out bright"
-        );
-        assert!((img.at(70, 28) - level).abs() < 3.0, "the dark bar is gone");
-        assert!(b.warnings()[0].contains("backlit"));
-        // Markers are looked for in the sphere's own grey, the right way up: the raw frame's
-        // level inside the disc, whatever was subtracted and inverted.
-        let mut raw = GreyImage::new();
-        src.read(10, &mut raw).expect("read");
-        for (u, v) in [(38, 12), (70, 28), (5, 5)] {
-            assert!(
-                (img.lit_at(u, v) - raw.at(u, v)).abs() < 1e-3,
-                "({u}, {v}): lit_at {} against the raw {}",
-                img.lit_at(u, v),
-                raw.at(u, v)
-            );
-        }
-    }
-}
+mod tests;

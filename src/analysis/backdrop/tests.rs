@@ -1,0 +1,276 @@
+//! The normalisation on small synthetic recordings: clutter, a backlit view, a flickering lamp.
+
+use super::*;
+use crate::analysis::geometry::ViewKind;
+use crate::analysis::source::MemoryFrames as Frames;
+
+fn view(w: u32, h: u32) -> View {
+    let g = crate::config::ViewGeometry::shorthand([0, 0, w, h], 2.0, [0.0, 0.0], "+x", "-y");
+    View::from_config(ViewKind::Direct, &g)
+}
+
+/// The light of frame k under a lamp flickering by `depth` at a tenth of the frame rate
+/// (100 Hz at 1000 fps).
+fn lamp(depth: f64, k: usize) -> f64 {
+    1.0 + depth * (std::f64::consts::TAU * k as f64 / 10.0 + 0.7).sin()
+}
+
+/// A view with a bright static bar (a ruler), a smooth gradient and a disc crossing it,
+/// `ground` and `disc` the levels, lit by a lamp flickering by `flicker`: frame k has the
+/// disc at u = 8 + 3k.
+fn recording(ground: f32, disc: f32, bar: f32, flicker: f64) -> Frames {
+    let (w, h) = (96, 32);
+    let frames = (0..30)
+        .map(|k| {
+            let cu = 8.0 + 3.0 * k as f32;
+            (0..w * h)
+                .map(|i| {
+                    let (u, v) = ((i % w) as f32, (i / w) as f32);
+                    let mut g = ground + 0.1 * u;
+                    if (26.0..30.0).contains(&v) {
+                        g = bar;
+                    }
+                    if (u - cu).hypot(v - 12.0) < 6.0 {
+                        g = disc;
+                    }
+                    // Deterministic "noise", ±1.
+                    g * lamp(flicker, k) as f32 + ((i * 7919 + k * 104_729) % 3) as f32 - 1.0
+                })
+                .collect()
+        })
+        .collect();
+    Frames { w, h, frames }
+}
+
+#[test]
+fn static_clutter_is_removed_and_the_moving_disc_stays() {
+    let mut src = recording(20.0, 180.0, 160.0, 0.0);
+    let views = [view(96, 32)];
+    let b = Backdrop::estimate(&mut src, &views).expect("estimate");
+    assert!(!b.views[0].dark_spheres);
+    let mut img = GreyImage::new();
+    src.read(10, &mut img).expect("read");
+    b.apply(&mut img);
+    // The ruler and the gradient are gone: within the noise of the ground's level.
+    let level = b.views[0].level;
+    for u in [5, 40, 90] {
+        assert!(
+            (img.at(u, 28) - level).abs() < 3.0,
+            "ruler at u {u}: {}",
+            img.at(u, 28)
+        );
+        assert!((img.at(u, 2) - level).abs() < 3.0, "gradient at u {u}");
+    }
+    // The disc (at u = 38 in frame 10) is still ~160 above its ground.
+    assert!(img.at(38, 12) - level > 140.0);
+    assert!(b.warnings().is_empty());
+}
+
+/// A shaded disc of radius 7 px crossing a bright bar (a ruler): frame k has it at u =
+/// 10.3 + 2.5k, v = 20.4, over the bar's rows 18–29 for most of its lower half. Pixels
+/// are averaged over 4 × 4 points. The lamp flickers by `flicker`.
+fn disc_over_a_bar(ground: f32, bar: f32, flicker: f64) -> Frames {
+    let (w, h) = (120, 40);
+    let frames = (0..30)
+        .map(|k| {
+            let (cu, cv) = (10.3 + 2.5 * k as f64, 20.4);
+            (0..w * h)
+                .map(|i| {
+                    let (u, v) = ((i % w) as f64, (i / w) as f64);
+                    let mut sum = 0.0;
+                    for a in 0..4 {
+                        for b in 0..4 {
+                            let (x, y) = (u - 0.375 + 0.25 * a as f64, v - 0.375 + 0.25 * b as f64);
+                            let rho = (x - cu).hypot(y - cv) / 7.0;
+                            sum += if rho < 1.0 {
+                                // Lit from the left: brighter there, an ambient floor.
+                                let nz = (1.0 - rho * rho).sqrt();
+                                60.0 + 130.0 * (0.8 * nz - 0.6 * (x - cu) / 7.0).max(0.0)
+                            } else if (18.0..30.0).contains(&y) {
+                                bar as f64
+                            } else {
+                                ground as f64
+                            };
+                        }
+                    }
+                    // Deterministic "noise", ±1.
+                    (lamp(flicker, k) * sum / 16.0) as f32 + ((i * 7919 + k * 104_729) % 3) as f32
+                        - 1.0
+                })
+                .collect()
+        })
+        .collect();
+    Frames { w, h, frames }
+}
+
+/// A disc in front of static clutter hides it: measured on the frame with the backdrop
+/// subtracted, its centre comes out where it is only if the fit knows what the disc hides
+/// (`GreyImage::ground`). Without it (edge points and the grey-level model both reading
+/// the subtracted frame as the sphere) neither frame's disc was measured at all.
+#[test]
+fn a_disc_in_front_of_a_bright_bar_is_measured_where_it_is() {
+    for bar in [150.0, 90.0] {
+        let mut src = disc_over_a_bar(20.0, bar, 0.0);
+        let views = [view(120, 40)];
+        let b = Backdrop::estimate(&mut src, &views).expect("estimate");
+        for k in [8, 13, 17] {
+            let mut img = GreyImage::new();
+            src.read(k, &mut img).expect("read");
+            b.apply(&mut img);
+            let truth = [10.3 + 2.5 * k as f64, 20.4];
+            let level = b.views[0].level as f64;
+            let fit = crate::analysis::circle::refine(
+                &img,
+                &views[0],
+                [truth[0] + 0.8, truth[1] - 0.6],
+                7.0,
+                level,
+                None,
+                &[],
+            )
+            .expect("the disc is measured");
+            let err = (fit.centre[0] - truth[0]).hypot(fit.centre[1] - truth[1]);
+            assert!(
+                fit.grey_levels && err < 0.03,
+                "bar {bar}, frame {k}: centre {:?} is {err:.3} px from {truth:?}",
+                fit.centre
+            );
+        }
+    }
+}
+
+#[test]
+fn a_backlit_view_is_inverted_and_said_so() {
+    let mut src = recording(200.0, 25.0, 60.0, 0.0);
+    let views = [view(96, 32)];
+    let b = Backdrop::estimate(&mut src, &views).expect("estimate");
+    assert!(b.views[0].dark_spheres);
+    let mut img = GreyImage::new();
+    src.read(10, &mut img).expect("read");
+    b.apply(&mut img);
+    let level = b.views[0].level;
+    assert!(
+        img.at(38, 12) - level > 150.0,
+        "the dark disc comes out bright"
+    );
+    assert!((img.at(70, 28) - level).abs() < 3.0, "the dark bar is gone");
+    assert!(b.warnings()[0].contains("backlit"));
+    // Markers are looked for in the sphere's own grey, the right way up: the raw frame's
+    // level inside the disc, whatever was subtracted and inverted.
+    let mut raw = GreyImage::new();
+    src.read(10, &mut raw).expect("read");
+    for (u, v) in [(38, 12), (70, 28), (5, 5)] {
+        assert!(
+            (img.lit_at(u, v) - raw.at(u, v)).abs() < 1e-3,
+            "({u}, {v}): lit_at {} against the raw {}",
+            img.lit_at(u, v),
+            raw.at(u, v)
+        );
+    }
+}
+
+/// Under a lamp flickering by ±30 % the bar is subtracted at each frame's light: the ground
+/// comes out flat (the bar's rows level with the ground's, where the still subtracted as it
+/// is left 0.3 of the bar's 130 grey levels in them), the disc in front of it is measured
+/// where it is, and the sphere's own levels (`sphere_at`) are the frame's. Under a steady
+/// lamp nothing is matched (`ground_light` empty).
+#[test]
+fn a_flickering_lamp_is_matched_frame_by_frame() {
+    let views = [view(120, 40)];
+    let mut steady = disc_over_a_bar(20.0, 150.0, 0.0);
+    let b = Backdrop::estimate(&mut steady, &views).expect("estimate");
+    for k in 0..30 {
+        let mut img = GreyImage::new();
+        steady.read(k, &mut img).expect("read");
+        b.apply(&mut img);
+        assert!(img.ground_light.is_empty(), "steady frame {k} was matched");
+    }
+    let mut src = disc_over_a_bar(20.0, 150.0, 0.3);
+    let b = Backdrop::estimate(&mut src, &views).expect("estimate");
+    let mut matched = 0;
+    for k in [1, 3, 6, 8, 13, 16, 17, 19] {
+        let mut img = GreyImage::new();
+        src.read(k, &mut img).expect("read");
+        let mut raw = GreyImage::new();
+        src.read(k, &mut raw).expect("read");
+        b.apply(&mut img);
+        matched += usize::from(!img.ground_light.is_empty());
+        // Far from the disc (at u = 10.3 + 2.5k), the bar's rows against the ground's.
+        let u = if 10.3 + 2.5 * k as f64 > 60.0 {
+            15
+        } else {
+            105
+        };
+        let (bar, ground) = (
+            img.at(u, 25) + img.at(u + 3, 27),
+            img.at(u, 5) + img.at(u + 3, 8),
+        );
+        assert!(
+            (bar - ground).abs() / 2.0 < 2.0,
+            "frame {k} (light {:.2}): the bar stands {:.1} above the ground",
+            lamp(0.3, k),
+            (bar - ground) / 2.0
+        );
+        for (u, v) in [(u, 25), (u, 5), (10 + (5 * k) / 2, 20)] {
+            assert!(
+                (img.sphere_at(u, v) - raw.at(u, v)).abs() < 1e-2,
+                "frame {k} ({u}, {v}): sphere_at {} against the raw {}",
+                img.sphere_at(u, v),
+                raw.at(u, v)
+            );
+        }
+        if !(8..=17).contains(&k) {
+            continue;
+        }
+        let truth = [10.3 + 2.5 * k as f64, 20.4];
+        let fit = crate::analysis::circle::refine(
+            &img,
+            &views[0],
+            [truth[0] + 0.8, truth[1] - 0.6],
+            7.0,
+            b.views[0].level as f64,
+            None,
+            &[],
+        )
+        .expect("the disc is measured");
+        let err = (fit.centre[0] - truth[0]).hypot(fit.centre[1] - truth[1]);
+        assert!(
+            fit.grey_levels && err < 0.03,
+            "frame {k} (light {:.2}): centre {:?} is {err:.3} px from {truth:?}",
+            lamp(0.3, k),
+            fit.centre
+        );
+    }
+    assert!(matched >= 6, "{matched} of 8 frames matched");
+}
+
+/// A backlit view under a flickering lamp: the dark bar subtracted at each frame's light,
+/// and the sphere's levels the right way up (`lit_at`) still the frame's own.
+#[test]
+fn a_backlit_view_under_a_flickering_lamp_is_matched_the_right_way_up() {
+    let mut src = recording(200.0, 25.0, 60.0, 0.3);
+    let views = [view(96, 32)];
+    let b = Backdrop::estimate(&mut src, &views).expect("estimate");
+    assert!(b.views[0].dark_spheres);
+    for k in [2, 5, 10, 14] {
+        let mut img = GreyImage::new();
+        src.read(k, &mut img).expect("read");
+        let mut raw = GreyImage::new();
+        src.read(k, &mut raw).expect("read");
+        b.apply(&mut img);
+        assert!(!img.ground_light.is_empty(), "frame {k} not matched");
+        let (bar, ground) = (img.at(70, 28), img.at(70, 20));
+        assert!(
+            (bar - ground).abs() < 3.0,
+            "frame {k}: the dark bar at {bar} against the ground's {ground}"
+        );
+        for (u, v) in [(8 + 3 * k, 12), (70, 28), (5, 5)] {
+            assert!(
+                (img.lit_at(u, v) - raw.at(u, v)).abs() < 1e-2,
+                "frame {k} ({u}, {v}): lit_at {} against the raw {}",
+                img.lit_at(u, v),
+                raw.at(u, v)
+            );
+        }
+    }
+}
