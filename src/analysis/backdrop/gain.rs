@@ -8,12 +8,18 @@
 //! every tube end, ruler and vignette where the ground has one (30 % flicker left the cluttered
 //! family's centres 2.6× worse). So each frame's view is matched to the still as
 //! `offset + gain·still`, fitted robustly over blocks of pixels (the spheres are a few blocks
-//! among many, and are weighed out), and that is subtracted instead.
+//! among many, and are weighed out), and the still's shape about its median is subtracted at
+//! that gain (`Backdrop::apply`; the uniform part of the change is left to the per-frame
+//! levels). The still itself is taken again from samples brought to its light first: under
+//! flicker the samples' light orders them alike at every pixel, and the quantile would be one
+//! frame's, its noise a fixed pattern in every frame.
 //!
 //! A gain can only be told from an offset where the still has shape: on a flat ground both move
 //! every block alike, and there a uniform offset is all a flicker leaves, which the levels and
-//! the disc fits take up. And only a gain that differs from 1 beyond its own noise is applied:
-//! under a steady lamp every frame is normalised exactly as before.
+//! the disc fits take up. A frame's gain is not trusted where the blocks its fit kept hold
+//! less than half the still's shape (a sphere in front of the only tube end in view). And only
+//! a gain that differs from 1 beyond its own noise is applied: under a steady lamp every frame
+//! is normalised exactly as before.
 
 use crate::analysis::image::GreyImage;
 
@@ -21,10 +27,12 @@ use crate::analysis::image::GreyImage;
 /// ground's shape; small enough that a view holds dozens.
 const BLOCK_SIDES: [usize; 2] = [16, 8];
 /// Fewer blocks than this fit no gain.
-const MIN_BLOCKS: usize = 12;
+const MIN_BLOCKS: usize = 40;
 /// The still's spread over its blocks must exceed its blocks' own noise by this factor (in
 /// variance: 5 in amplitude) for a gain to be told from an offset.
 const SHAPE_OVER_NOISE: f64 = 25.0;
+/// The blocks a frame's fit keeps must hold this share of the still's shape (by variance).
+const MIN_SHAPE_KEPT: f64 = 0.5;
 /// A gain is applied only this many of its σ away from 1.
 const SIGNIFICANT_SIGMA: f64 = 5.0;
 
@@ -127,52 +135,96 @@ impl Blocks {
             })
             .collect();
         let s = &self.still;
-        let mut residual: Vec<f64> = frame.iter().zip(s).map(|(p, s)| p - s).collect();
-        let (mut gain, mut offset) = (1.0, median(&mut residual.clone()));
+        // A least-squares line first, then Cauchy's weights from its residuals' median absolute
+        // deviation, refitted: the blocks a sphere crosses stand out and drop away.
         let mut weights = vec![1.0; s.len()];
-        let mut sigma_gain = f64::INFINITY;
-        // Cauchy's weights from the residuals' median absolute deviation, refitted: the blocks
-        // a sphere crosses stand out and drop away.
+        let mut line = self.weighted_line(&frame, &weights)?;
+        let mut scale = 0.0;
         for _ in 0..6 {
-            for ((r, p), s) in residual.iter_mut().zip(&frame).zip(s) {
-                *r = p - offset - gain * s;
-            }
+            let residual: Vec<f64> = frame
+                .iter()
+                .zip(s)
+                .map(|(p, s)| p - line.offset - line.gain * s)
+                .collect();
             let centre = median(&mut residual.clone());
             let mut dev: Vec<f64> = residual.iter().map(|r| (r - centre).abs()).collect();
-            let scale = (1.4826 * median(&mut dev)).max(1e-6);
+            // (Not below the still's own noise: a frame is at least as noisy.)
+            scale = (1.4826 * median(&mut dev)).max(self.noise_var.sqrt());
             for (w, r) in weights.iter_mut().zip(&residual) {
                 let z = r / (2.385 * scale);
                 *w = 1.0 / (1.0 + z * z);
             }
-            let sw: f64 = weights.iter().sum();
-            let mean_s = weights.iter().zip(s).map(|(w, s)| w * s).sum::<f64>() / sw;
-            let mean_p = weights.iter().zip(&frame).map(|(w, p)| w * p).sum::<f64>() / sw;
-            // The still's blocks carry noise of their own, which would pull the slope towards
-            // 0: their expected share of the spread is taken out.
-            let spread = weights
-                .iter()
-                .zip(s)
-                .map(|(w, s)| w * (s - mean_s).powi(2))
-                .sum::<f64>()
-                / sw
-                - self.noise_var;
-            if spread <= 0.0 {
-                return None;
-            }
-            let cov = weights
-                .iter()
-                .zip(s)
-                .zip(&frame)
-                .map(|((w, s), p)| w * (s - mean_s) * (p - mean_p))
-                .sum::<f64>()
-                / sw;
-            gain = cov / spread;
-            offset = mean_p - gain * mean_s;
-            sigma_gain = scale / (sw * spread).sqrt();
+            line = self.weighted_line(&frame, &weights)?;
         }
+        // The blocks the fit kept must hold most of the still's shape: where a sphere stands
+        // in front of the clutter, the little shape left elsewhere says little of the gain.
+        let all: f64 = {
+            let mean = s.iter().sum::<f64>() / s.len() as f64;
+            s.iter().map(|s| (s - mean).powi(2)).sum()
+        };
+        let kept: f64 = weights
+            .iter()
+            .zip(s)
+            .map(|(w, s)| w * (s - line.mean_still).powi(2))
+            .sum();
+        if kept < MIN_SHAPE_KEPT * all {
+            return None;
+        }
+        let sigma_gain = scale / (line.weight * line.spread).sqrt();
+        let gain = line.gain;
         ((gain - 1.0).abs() > SIGNIFICANT_SIGMA * sigma_gain && gain.is_finite() && gain > 0.0)
-            .then_some(Light { gain, offset })
+            .then_some(Light {
+                gain,
+                offset: line.offset,
+            })
     }
+
+    /// The weighted least-squares line through (still, frame) over the blocks; None where the
+    /// weighted still has no spread beyond its noise.
+    fn weighted_line(&self, frame: &[f64], weights: &[f64]) -> Option<Line> {
+        let s = &self.still;
+        let weight: f64 = weights.iter().sum();
+        let mean_still = weights.iter().zip(s).map(|(w, s)| w * s).sum::<f64>() / weight;
+        let mean_frame = weights.iter().zip(frame).map(|(w, p)| w * p).sum::<f64>() / weight;
+        // The still's blocks carry noise of their own, which would pull the slope towards 0:
+        // their expected share of the spread is taken out.
+        let spread = weights
+            .iter()
+            .zip(s)
+            .map(|(w, s)| w * (s - mean_still).powi(2))
+            .sum::<f64>()
+            / weight
+            - self.noise_var;
+        if spread.is_nan() || spread <= 0.0 {
+            return None;
+        }
+        let cov = weights
+            .iter()
+            .zip(s)
+            .zip(frame)
+            .map(|((w, s), p)| w * (s - mean_still) * (p - mean_frame))
+            .sum::<f64>()
+            / weight;
+        let gain = cov / spread;
+        Some(Line {
+            gain,
+            offset: mean_frame - gain * mean_still,
+            mean_still,
+            spread,
+            weight,
+        })
+    }
+}
+
+/// `Blocks::weighted_line`'s fit.
+struct Line {
+    gain: f64,
+    offset: f64,
+    mean_still: f64,
+    /// The weighted still's variance, its noise taken out.
+    spread: f64,
+    /// The weights' sum.
+    weight: f64,
 }
 
 fn median(v: &mut [f64]) -> f64 {

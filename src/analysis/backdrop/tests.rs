@@ -68,10 +68,13 @@ fn static_clutter_is_removed_and_the_moving_disc_stays() {
 
 /// A shaded disc of radius 7 px crossing a bright bar (a ruler): frame k has it at u =
 /// 10.3 + 2.5k, v = 20.4, over the bar's rows 18–29 for most of its lower half. Pixels
-/// are averaged over 4 × 4 points. The lamp flickers by `flicker`.
-fn disc_over_a_bar(ground: f32, bar: f32, flicker: f64) -> Frames {
+/// are averaged over 4 × 4 points. The lamp flickers by `flicker`. `frames`: 30, or more for
+/// a recording in which the disc covers each pixel of the bar in fewer of the frames (it is
+/// darker than the bar at its limb; over a fifth of them it would be the backdrop's quantile
+/// there).
+fn disc_over_a_bar(ground: f32, bar: f32, flicker: f64, frames: usize) -> Frames {
     let (w, h) = (120, 40);
-    let frames = (0..30)
+    let frames = (0..frames)
         .map(|k| {
             let (cu, cv) = (10.3 + 2.5 * k as f64, 20.4);
             (0..w * h)
@@ -110,7 +113,7 @@ fn disc_over_a_bar(ground: f32, bar: f32, flicker: f64) -> Frames {
 #[test]
 fn a_disc_in_front_of_a_bright_bar_is_measured_where_it_is() {
     for bar in [150.0, 90.0] {
-        let mut src = disc_over_a_bar(20.0, bar, 0.0);
+        let mut src = disc_over_a_bar(20.0, bar, 0.0, 30);
         let views = [view(120, 40)];
         let b = Backdrop::estimate(&mut src, &views).expect("estimate");
         for k in [8, 13, 17] {
@@ -177,15 +180,15 @@ fn a_backlit_view_is_inverted_and_said_so() {
 #[test]
 fn a_flickering_lamp_is_matched_frame_by_frame() {
     let views = [view(120, 40)];
-    let mut steady = disc_over_a_bar(20.0, 150.0, 0.0);
+    let mut steady = disc_over_a_bar(20.0, 150.0, 0.0, 60);
     let b = Backdrop::estimate(&mut steady, &views).expect("estimate");
-    for k in 0..30 {
+    for k in 0..60 {
         let mut img = GreyImage::new();
         steady.read(k, &mut img).expect("read");
         b.apply(&mut img);
         assert!(img.ground_light.is_empty(), "steady frame {k} was matched");
     }
-    let mut src = disc_over_a_bar(20.0, 150.0, 0.3);
+    let mut src = disc_over_a_bar(20.0, 150.0, 0.3, 60);
     let b = Backdrop::estimate(&mut src, &views).expect("estimate");
     let mut matched = 0;
     for k in [1, 3, 6, 8, 13, 16, 17, 19] {
@@ -244,21 +247,23 @@ fn a_flickering_lamp_is_matched_frame_by_frame() {
     assert!(matched >= 6, "{matched} of 8 frames matched");
 }
 
-/// A backlit view under a flickering lamp: the dark bar subtracted at each frame's light,
-/// and the sphere's levels the right way up (`lit_at`) still the frame's own.
+/// A backlit view under a flickering lamp: the dark bar subtracted at each frame's light (the
+/// bar's rows level with the ground's), and the sphere's levels the right way up (`lit_at`)
+/// still the frame's own.
 #[test]
 fn a_backlit_view_under_a_flickering_lamp_is_matched_the_right_way_up() {
     let mut src = recording(200.0, 25.0, 60.0, 0.3);
     let views = [view(96, 32)];
     let b = Backdrop::estimate(&mut src, &views).expect("estimate");
     assert!(b.views[0].dark_spheres);
+    let mut matched = 0;
     for k in [2, 5, 10, 14] {
         let mut img = GreyImage::new();
         src.read(k, &mut img).expect("read");
         let mut raw = GreyImage::new();
         src.read(k, &mut raw).expect("read");
         b.apply(&mut img);
-        assert!(!img.ground_light.is_empty(), "frame {k} not matched");
+        matched += usize::from(!img.ground_light.is_empty());
         let (bar, ground) = (img.at(70, 28), img.at(70, 20));
         assert!(
             (bar - ground).abs() < 3.0,
@@ -273,4 +278,6 @@ fn a_backlit_view_under_a_flickering_lamp_is_matched_the_right_way_up() {
             );
         }
     }
+    // (A frame whose light happens to be the still's is left as it is.)
+    assert!(matched >= 3, "{matched} of 4 frames matched");
 }
