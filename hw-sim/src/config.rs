@@ -13,6 +13,10 @@ fn is_zero(x: &f64) -> bool {
     *x == 0.0
 }
 
+fn is_one(x: &f64) -> bool {
+    *x == 1.0
+}
+
 fn is_default_flicker_hz(x: &f64) -> bool {
     *x == DEFAULT_FLICKER_HZ
 }
@@ -81,6 +85,10 @@ pub struct LabConfig {
     /// recording's start follows from the seed.
     #[serde(skip_serializing_if = "is_default_flicker_hz")]
     pub flicker_hz: f64,
+    /// The camera's gamma: a level is 255·(linear/255)^(1/gamma), as many cameras encode (2.2
+    /// for sRGB-like); 1: linear. Needs a look.
+    #[serde(skip_serializing_if = "is_one")]
+    pub gamma: f64,
     /// Samples per pixel side for anti-aliasing (4 → 16 samples).
     pub supersample: u32,
     /// Samples per pixel side where a sphere's limb or a marker's rim crosses the pixel. A
@@ -153,6 +161,7 @@ impl Default for LabConfig {
             exposure_ms: 0.1,
             flicker_percent: 0.0,
             flicker_hz: DEFAULT_FLICKER_HZ,
+            gamma: 1.0,
             supersample: 4,
             edge_supersample: 16,
             drop_frame_ids: Vec::new(),
@@ -271,6 +280,10 @@ impl LabConfig {
         range("exposure_ms", self.exposure_ms, 0.0, 100.0)?;
         range("flicker_percent", self.flicker_percent, 0.0, 100.0)?;
         range("flicker_hz", self.flicker_hz, 1.0, 10000.0)?;
+        range("gamma", self.gamma, 0.2, 5.0)?;
+        if self.gamma != 1.0 && drawn.look.is_none() {
+            return Err("sim.gamma: a camera's gamma is drawn under a look only (sim.look or sim.look_family)".into());
+        }
         if self.flicker_percent > 0.0 && drawn.look.is_none() {
             return Err("sim.flicker_percent: a flickering lamp needs a look (sim.look or sim.look_family); the default render has no lamp to flicker".into());
         }

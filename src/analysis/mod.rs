@@ -19,6 +19,7 @@ mod impulse;
 pub mod kinematics;
 pub mod lens;
 pub mod line_fit;
+pub mod linear;
 pub mod markers;
 mod momentum;
 mod names_through_impact;
@@ -184,6 +185,8 @@ pub fn analyze_detailed(
             )));
         }
     }
+    // In linear light, where the camera encodes with a gamma.
+    let src = &mut linear::Linear::new(src, cfg);
     // Each frame is measured against what stands still in its view, bright side up.
     stages::set_pass(0);
     let backdrop = stages::timed(stages::Stage::Backdrop, || {

@@ -14,6 +14,7 @@ pub fn measure(
     cfg: &Config,
 ) -> Result<(Vec<View>, Vec<FrameObs>), AnalysisError> {
     let views = geometry::views(cfg);
+    let src = &mut super::linear::Linear::new(src, cfg);
     let backdrop = backdrop::Backdrop::estimate(src, &views)?;
     let src = &mut backdrop::Normalised {
         inner: src,
@@ -63,6 +64,7 @@ pub fn blobs(
     frames: usize,
 ) -> Result<Vec<Vec<Vec<detect::Blob>>>, AnalysisError> {
     let views = geometry::views(cfg);
+    let src = &mut super::linear::Linear::new(src, cfg);
     let backdrop = backdrop::Backdrop::estimate(src, &views)?;
     let n = src.len();
     let src = &mut backdrop::Normalised {

@@ -129,6 +129,12 @@ pub struct CameraConfig {
     /// moved half a pixel or more while the shutter was open is fitted as smeared
     /// (`circle::FirstPassDisc::smear_px`); None, it takes the shutter as short.
     pub exposure_us: Option<f64>,
+    /// The gamma the camera encodes its levels with (a level is full scale × (linear light /
+    /// full scale)^(1/gamma); 2.2 for an sRGB-like curve); None: linear, as machine-vision
+    /// cameras deliver by default. The analysis brings every frame back to linear light by it
+    /// (`analysis::linear`); impactcam does not set it on the camera.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gamma: Option<f64>,
     /// How the camera starts each exposure: "free_run" (its own clock), "software" (impactcam
     /// triggers each frame), or "hardware" (a trigger input, `trigger_line`). Aravis only.
     pub trigger_mode: CameraTrigger,
@@ -154,6 +160,7 @@ impl Default for CameraConfig {
             pixel_format: PixelFormat::Mono8,
             frame_rate_hz: 1000.0,
             exposure_us: None,
+            gamma: None,
             trigger_mode: CameraTrigger::FreeRun,
             trigger_line: "Line1".into(),
         }

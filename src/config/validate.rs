@@ -33,6 +33,13 @@ impl Config {
         if let Some(e) = c.exposure_us {
             pos("camera.exposure_us", e)?;
         }
+        if let Some(g) = c.gamma {
+            if !(g.is_finite() && (0.2..=5.0).contains(&g)) {
+                return Err(format!(
+                    "camera.gamma: {g} is out of range, expected 0.2 to 5 (2.2 for an sRGB-like curve, 1 for linear)"
+                ));
+            }
+        }
         if c.trigger_mode != CameraTrigger::FreeRun && c.backend != CameraBackend::Aravis {
             return Err(format!(
                 "camera.trigger_mode: {:?} needs backend = \"aravis\"; other backends run free",

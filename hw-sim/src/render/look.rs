@@ -349,5 +349,12 @@ pub(super) fn write_noisy(
     bpp: usize,
 ) {
     let sigma = total_sigma(cfg, mean);
-    write_pixel(out, idx, mean + sigma * unit_noise, bpp);
+    let linear = mean + sigma * unit_noise;
+    // A camera's gamma encodes the sensor's linear signal, noise and all, before quantising.
+    let encoded = if cfg.gamma == 1.0 {
+        linear
+    } else {
+        255.0 * (linear.max(0.0) / 255.0).powf(1.0 / cfg.gamma)
+    };
+    write_pixel(out, idx, encoded, bpp);
 }
