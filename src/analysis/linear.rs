@@ -9,17 +9,15 @@
 //! gamma, each frame is decoded first: level = full scale × (level / full scale)^gamma.
 
 use super::image::GreyImage;
-use super::report::Source;
-use super::{AnalysisError, FrameSource};
+use super::source::{Filtered, FrameFilter};
+use super::FrameSource;
 use crate::config::Config;
-use crate::session::FrameMeta;
 
 /// The analysis's full scale: 8-bit levels, and 16-bit ones scaled to it (`GreyImage::load`).
 const FULL_SCALE: f64 = 255.0;
 
-/// A frame source whose frames come out in linear light.
-pub struct Linear<'a> {
-    inner: &'a mut dyn FrameSource,
+/// Frames decoded to linear light (a `FrameFilter`).
+pub struct Linear {
     /// The decoded level of every code a frame can hold (8-bit levels and 16-bit ones are
     /// both k/256 of full scale's 255, k < 65 536): a table, not a power per pixel. Empty:
     /// the frames are linear already, and pass as they are.
@@ -27,9 +25,9 @@ pub struct Linear<'a> {
     gamma: f64,
 }
 
-impl<'a> Linear<'a> {
+impl Linear {
     /// `inner`'s frames decoded by the config's `camera.gamma`, if it gives one other than 1.
-    pub fn new(inner: &'a mut dyn FrameSource, cfg: &Config) -> Linear<'a> {
+    pub fn new<'a>(inner: &'a mut dyn FrameSource, cfg: &Config) -> Filtered<'a, Linear> {
         let gamma = cfg.camera.gamma.unwrap_or(1.0);
         let table = if gamma != 1.0 {
             (0..=u16::MAX)
@@ -38,49 +36,26 @@ impl<'a> Linear<'a> {
         } else {
             Vec::new()
         };
-        Linear {
+        Filtered {
             inner,
-            table,
-            gamma,
+            filter: Linear { table, gamma },
         }
     }
 }
 
-impl FrameSource for Linear<'_> {
-    fn source(&self) -> Source {
-        self.inner.source()
-    }
-    fn len(&self) -> usize {
-        self.inner.len()
-    }
-    fn meta(&self, i: usize) -> FrameMeta {
-        self.inner.meta(i)
-    }
-    fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
-        self.inner.read(i, img)?;
-        if !self.table.is_empty() {
-            for p in &mut img.data {
-                // (A frame as read holds codes only; anything else is decoded as it is.)
-                let k = (*p * 256.0).round();
-                *p = match self.table.get(k as usize) {
-                    Some(&d) if k / 256.0 == *p => d,
-                    _ => decoded(*p, self.gamma),
-                };
-            }
+impl FrameFilter for Linear {
+    fn apply(&mut self, img: &mut GreyImage) {
+        if self.table.is_empty() {
+            return;
         }
-        Ok(())
-    }
-    fn frames_dropped(&self) -> u64 {
-        self.inner.frames_dropped()
-    }
-    fn dimensions(&self) -> (u32, u32) {
-        self.inner.dimensions()
-    }
-    fn warnings(&self) -> Vec<String> {
-        self.inner.warnings()
-    }
-    fn recorded_config(&self) -> Option<&Config> {
-        self.inner.recorded_config()
+        for p in &mut img.data {
+            // (A frame as read holds codes only; anything else is decoded as it is.)
+            let k = (*p * 256.0).round();
+            *p = match self.table.get(k as usize) {
+                Some(&d) if k / 256.0 == *p => d,
+                _ => decoded(*p, self.gamma),
+            };
+        }
     }
 }
 

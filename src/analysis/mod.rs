@@ -190,9 +190,9 @@ pub fn analyze_detailed(
     let backdrop = stages::timed(stages::Stage::Backdrop, || {
         backdrop::Backdrop::estimate(src, &views)
     })?;
-    let src = &mut backdrop::Normalised {
+    let src = &mut source::Filtered {
         inner: src,
-        backdrop,
+        filter: backdrop,
     };
     // The first pass's fits, for the second to finish.
     let memo = tracking::FitMemo::default();

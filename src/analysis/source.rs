@@ -1,5 +1,7 @@
 //! Where the frames come from: the `FrameSource` trait and its adapters for a recorded session
-//! and a TIFF stack recorded elsewhere, and `open`, which picks one for a path.
+//! and a TIFF stack recorded elsewhere, and `open`, which picks one for a path; `Filtered`, a
+//! source whose frames pass through a `FrameFilter` as they are read (decoded to linear light,
+//! the backdrop subtracted).
 
 use super::image::GreyImage;
 use super::report::Source;
@@ -25,6 +27,53 @@ pub trait FrameSource {
     /// The config the footage was recorded with, where the source carries one (a session).
     fn recorded_config(&self) -> Option<&Config> {
         None
+    }
+}
+
+/// What a source wrapping another does to each frame as it is read (`Filtered`).
+pub trait FrameFilter {
+    fn apply(&mut self, img: &mut GreyImage);
+    /// What the filter has to say about the input, after the inner source's warnings.
+    fn warnings(&self) -> Vec<String> {
+        Vec::new()
+    }
+}
+
+/// `inner`'s frames, each passed through `filter` as it is read; everything else about the
+/// source is `inner`'s.
+pub struct Filtered<'a, F> {
+    pub inner: &'a mut dyn FrameSource,
+    pub filter: F,
+}
+
+impl<F: FrameFilter> FrameSource for Filtered<'_, F> {
+    fn source(&self) -> Source {
+        self.inner.source()
+    }
+    fn len(&self) -> usize {
+        self.inner.len()
+    }
+    fn meta(&self, i: usize) -> FrameMeta {
+        self.inner.meta(i)
+    }
+    fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
+        self.inner.read(i, img)?;
+        self.filter.apply(img);
+        Ok(())
+    }
+    fn frames_dropped(&self) -> u64 {
+        self.inner.frames_dropped()
+    }
+    fn dimensions(&self) -> (u32, u32) {
+        self.inner.dimensions()
+    }
+    fn warnings(&self) -> Vec<String> {
+        let mut w = self.inner.warnings();
+        w.extend(self.filter.warnings());
+        w
+    }
+    fn recorded_config(&self) -> Option<&Config> {
+        self.inner.recorded_config()
     }
 }
 

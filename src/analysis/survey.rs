@@ -16,9 +16,9 @@ pub fn measure(
     let views = geometry::views(cfg);
     let src = &mut super::linear::Linear::new(src, cfg);
     let backdrop = backdrop::Backdrop::estimate(src, &views)?;
-    let src = &mut backdrop::Normalised {
+    let src = &mut super::source::Filtered {
         inner: src,
-        backdrop,
+        filter: backdrop,
     };
     // One pass, so its fits are final ones (not the first pass's, stopped after their box
     // rounds for a second to finish).
@@ -67,9 +67,9 @@ pub fn blobs(
     let src = &mut super::linear::Linear::new(src, cfg);
     let backdrop = backdrop::Backdrop::estimate(src, &views)?;
     let n = src.len();
-    let src = &mut backdrop::Normalised {
+    let src = &mut super::source::Filtered {
         inner: src,
-        backdrop,
+        filter: backdrop,
     };
     let mut img = image::GreyImage::new();
     let take = n.min(frames.max(1));

@@ -16,11 +16,8 @@ mod gain;
 
 use super::geometry::View;
 use super::image::{GreyImage, GroundLight, SATURATED_GREY};
-use super::report::Source;
-use super::source::FrameSource;
+use super::source::{FrameFilter, FrameSource};
 use super::AnalysisError;
-use crate::config::Config;
-use crate::session::FrameMeta;
 use std::sync::Arc;
 
 /// Frames sampled for the backdrop, at most.
@@ -320,40 +317,13 @@ fn dark_spheres(frames: &[GreyImage], rect: [usize; 4]) -> bool {
     votes < 0
 }
 
-/// A frame source whose frames come out normalised by a backdrop.
-pub struct Normalised<'a> {
-    pub inner: &'a mut dyn FrameSource,
-    pub backdrop: Backdrop,
-}
-
-impl FrameSource for Normalised<'_> {
-    fn source(&self) -> Source {
-        self.inner.source()
-    }
-    fn len(&self) -> usize {
-        self.inner.len()
-    }
-    fn meta(&self, i: usize) -> FrameMeta {
-        self.inner.meta(i)
-    }
-    fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
-        self.inner.read(i, img)?;
-        self.backdrop.apply(img);
-        Ok(())
-    }
-    fn frames_dropped(&self) -> u64 {
-        self.inner.frames_dropped()
-    }
-    fn dimensions(&self) -> (u32, u32) {
-        self.inner.dimensions()
+/// Each frame normalised by the backdrop as it is read (`source::Filtered`).
+impl FrameFilter for Backdrop {
+    fn apply(&mut self, img: &mut GreyImage) {
+        Backdrop::apply(self, img);
     }
     fn warnings(&self) -> Vec<String> {
-        let mut w = self.inner.warnings();
-        w.extend(self.backdrop.warnings());
-        w
-    }
-    fn recorded_config(&self) -> Option<&Config> {
-        self.inner.recorded_config()
+        Backdrop::warnings(self)
     }
 }
 
