@@ -292,7 +292,8 @@ pub(crate) enum BenchWhat {
         /// developed: an in-distribution figure), `varied` (each experiment draws a look family
         /// and its parameters from its seed), or one family: side_lit, specular, backlit,
         /// cluttered, defocus, paint, mixed; or `overexposed` (side-lit, every sphere's lit side at
-        /// the camera's ceiling), which `varied` does not draw.
+        /// the camera's ceiling) or `grey_ground` (side-lit over a grey ground, every sphere's
+        /// shaded limb darker than it), which `varied` does not draw.
         #[arg(long, default_value = "default")]
         looks: String,
         /// The camera's exposure, ms: hw-sim smears the spheres over it, and the config tells

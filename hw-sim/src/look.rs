@@ -152,8 +152,10 @@ impl Look {
     /// Families `draw` knows that "varied" does not draw from (so that the varied draws stay
     /// as they were): `overexposed`, side-lit spheres of grey 215 with the direct view's gain
     /// 1.45–1.7 and the mirror's 0.85–0.9 of that, so that every sphere's lit side sits at the
-    /// camera's ceiling (255) in both views.
-    pub const EXTRA_FAMILIES: [&'static str; 1] = ["overexposed"];
+    /// camera's ceiling (255) in both views; `grey_ground`, side-lit spheres (25–40° off the
+    /// axis, ambient floor 0.2–0.3) over a grey ground of 80–115, so that every sphere's
+    /// shaded limb is darker than the ground while its lit side is brighter.
+    pub const EXTRA_FAMILIES: [&'static str; 2] = ["overexposed", "grey_ground"];
 
     /// A look drawn at random from `family` (one of `FAMILIES` or `EXTRA_FAMILIES`, or
     /// "varied": one of `FAMILIES` drawn first) with the lab's grey levels to go with it; the
@@ -229,6 +231,14 @@ impl Look {
                 look.views[0].gain = gain;
                 look.views[1].gain *= gain;
                 levels.sphere_grey = 215.0;
+            }
+            "grey_ground" => {
+                // Drawn after everything else, so the side-lit draws above stay the same.
+                levels.background_grey = u(80.0, 115.0);
+                look.ambient = u(0.2, 0.3);
+                for v in look.views.iter_mut() {
+                    v.light_off_axis_deg = u(25.0, 40.0);
+                }
             }
             "paint" => {
                 look.marker_paint = MarkerPaint::Grey;
@@ -347,6 +357,27 @@ mod tests {
             assert_ne!(
                 Look::draw("varied", seed).expect("varied").0.family,
                 "overexposed"
+            );
+        }
+    }
+
+    /// A grey-ground look puts every sphere's shaded limb (its ambient floor) below the ground
+    /// and its brightest point above it, in both views, and "varied" never draws it.
+    #[test]
+    fn grey_ground_looks_have_limbs_darker_than_the_ground() {
+        for seed in 0..50 {
+            let (look, levels) = Look::draw("grey_ground", seed).expect("a family");
+            look.validate().expect("a drawn look is valid");
+            assert_eq!(look.family, "grey_ground");
+            assert!(
+                levels.sphere_grey * look.ambient < levels.background_grey - 10.0
+                    && levels.sphere_grey > levels.background_grey + 50.0,
+                "seed {seed}: {levels:?}, ambient {}",
+                look.ambient
+            );
+            assert_ne!(
+                Look::draw("varied", seed).expect("varied").0.family,
+                "grey_ground"
             );
         }
     }

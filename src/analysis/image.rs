@@ -164,20 +164,20 @@ impl GreyImage {
         }
     }
 
-    /// The largest |`ground`| over the pixels a bilinear sample at (u, v) reads; 0 outside the
-    /// image or without a ground.
-    pub fn ground_near(&self, u: f64, v: f64) -> f64 {
+    /// The largest |`ground` − `reference`| over the pixels a bilinear sample at (u, v) reads:
+    /// how far the backdrop there differs from a level; 0 outside the image or without a ground.
+    pub fn ground_off(&self, u: f64, v: f64, reference: f64) -> f64 {
         if self.ground.is_none() || !(u >= 0.0 && v >= 0.0) {
             return 0.0;
         }
         let (u0, v0) = (u.floor() as usize, v.floor() as usize);
-        let mut most = 0f32;
+        let mut most = 0f64;
         for (du, dv) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
             if u0 + du < self.width && v0 + dv < self.height {
-                most = most.max(self.ground_at(u0 + du, v0 + dv).abs());
+                most = most.max((self.ground_at(u0 + du, v0 + dv) as f64 - reference).abs());
             }
         }
-        most as f64
+        most
     }
 
     /// The pixels of the square of half-side `reach` round `centre` that lie in the image:

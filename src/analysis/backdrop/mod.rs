@@ -265,22 +265,62 @@ fn quantile(frames: &[GreyImage], rect: [usize; 4], idx: usize) -> Vec<f32> {
     still
 }
 
-/// Whether what differs from a view's ground is darker than it: in each sampled frame, the
-/// view's darkest 0.3 % against its brightest 0.3 %, each measured from the median; a frame
-/// votes only where one side stands out clearly (8× the noise) and is at least twice the other.
-/// The noise is measured between neighbouring pixels, which an uneven ground does not inflate.
+/// Whether what differs from a view's ground is darker than it (`votes_dark`). A ground that
+/// is not flat — vignetting, a gradient, clutter — has tails of its own, which on a bright
+/// ground reach as far as a sphere's (a grey ground of 104 vignetted by a fifth: its darkest
+/// 0.3 % 26 levels below its median, its brightest 12 above, in every frame without a sphere,
+/// and the view was turned over). So a view voted dark is voted again on each frame less the
+/// per-pixel median of the samples (the ground as it is: the spheres pass, it stays), where
+/// only what moves stands out, and the dark must outweigh the bright over all the frames.
 fn dark_spheres(frames: &[GreyImage], rect: [usize; 4]) -> bool {
-    let mut votes = 0i32;
+    if !votes_dark(frames, rect, None) {
+        return false;
+    }
+    if frames.len() < MIN_FRAMES {
+        return true;
+    }
+    let median = quantile(frames, rect, (frames.len() - 1) / 2);
+    votes_dark(frames, rect, Some(&median))
+}
+
+/// What `votes_dark`'s frames said: the votes (each −1 dark, +1 bright), and the dark and the
+/// bright extremes summed over the frames where either stood out.
+struct Votes {
+    votes: i32,
+    dark: f64,
+    bright: f64,
+}
+
+/// Whether the sampled frames vote what differs from the view's ground darker than it: in
+/// each, the view's darkest 0.3 % against its brightest 0.3 %, each measured from the median;
+/// a frame votes only where one side stands out clearly (8× the noise) and is at least twice
+/// the other. The noise is measured between neighbouring pixels, which an uneven ground does
+/// not inflate. `ground`: subtracted from each frame first (the rect's pixels, row by row);
+/// then the dark extremes summed over the frames must also be twice the bright ones: a
+/// sphere lit from one side over a grey ground is as much darker as brighter than it, and
+/// its few frames that vote (half a disc in view at a border, its dark side first) do not
+/// speak for the view.
+fn votes_dark(frames: &[GreyImage], rect: [usize; 4], ground: Option<&[f32]>) -> bool {
+    let mut tally = Votes {
+        votes: 0,
+        dark: 0.0,
+        bright: 0.0,
+    };
     let mut vals: Vec<f32> = Vec::new();
     let mut steps: Vec<f32> = Vec::new();
+    let rw = rect[2] - rect[0];
     for f in frames {
         vals.clear();
         steps.clear();
+        let at = |u: usize, v: usize| match ground {
+            Some(g) => f.at(u, v) - g[(v - rect[1]) * rw + u - rect[0]],
+            None => f.at(u, v),
+        };
         for v in rect[1]..rect[3] {
             for u in rect[0]..rect[2] {
-                vals.push(f.at(u, v));
+                vals.push(at(u, v));
                 if u + 1 < rect[2] {
-                    steps.push((f.at(u + 1, v) - f.at(u, v)).abs());
+                    steps.push((at(u + 1, v) - at(u, v)).abs());
                 }
             }
         }
@@ -309,12 +349,19 @@ fn dark_spheres(frames: &[GreyImage], rect: [usize; 4]) -> bool {
         let noise = (step_median / (0.954 * std::f64::consts::SQRT_2)).max(0.5);
         let (dark, bright) = (med - q_lo, q_hi - med);
         if dark > 8.0 * noise && dark > 2.0 * bright {
-            votes -= 1;
+            tally.votes -= 1;
         } else if bright > 8.0 * noise && bright > 2.0 * dark {
-            votes += 1;
+            tally.votes += 1;
+        }
+        if dark.max(bright) > 8.0 * noise {
+            tally.dark += dark;
+            tally.bright += bright;
         }
     }
-    votes < 0
+    match ground {
+        None => tally.votes < 0,
+        Some(_) => tally.votes < 0 && tally.dark > 2.0 * tally.bright,
+    }
 }
 
 /// Each frame normalised by the backdrop as it is read (`source::Filtered`).

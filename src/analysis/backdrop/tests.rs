@@ -172,6 +172,38 @@ fn a_backlit_view_is_inverted_and_said_so() {
     }
 }
 
+/// A grey ground (100) vignetted by 30 % at the corners, a disc lit from one side crossing it
+/// in the last two thirds of the frames (its lit side 200, its shaded side 30: more of it
+/// brighter than the ground than darker): not a backlit view. In each frame without the disc
+/// the darkest 0.3 % is the vignetted corners, 25 levels below the median where the brightest
+/// 0.3 % is within 4 of it, and voted on the frames as they are the view was turned over.
+#[test]
+fn a_vignetted_grey_ground_is_not_taken_for_a_backlit_view() {
+    let (w, h) = (96usize, 32usize);
+    let frames = (0..30)
+        .map(|k| {
+            let cu = 3.0 * k as f32 - 40.0;
+            (0..w * h)
+                .map(|i| {
+                    let (u, v) = ((i % w) as f32, (i / w) as f32);
+                    let (du, dv) = ((u - 47.5) / 47.5, (v - 15.5) / 15.5);
+                    let q = (du * du + dv * dv) / 2.0;
+                    let mut g = 100.0 * (1.0 - 0.3 * q * q);
+                    let (x, y) = (u - cu, v - 16.0);
+                    if x.hypot(y) < 9.0 {
+                        // Lit from the left: bright on that side, below the ground on the other.
+                        g = if x < 4.0 { 200.0 + 4.0 * x } else { 30.0 };
+                    }
+                    g + ((i * 7919 + k * 104_729) % 3) as f32 - 1.0
+                })
+                .collect()
+        })
+        .collect();
+    let mut src = Frames { w, h, frames };
+    let b = Backdrop::estimate(&mut src, &[view(96, 32)]).expect("estimate");
+    assert!(!b.views[0].dark_spheres, "a grey ground turned over");
+}
+
 /// Under a lamp flickering by ±30 % the bar is subtracted at each frame's light: the ground
 /// comes out flat (the bar's rows level with the ground's, where the still subtracted as it
 /// is left 0.3 of the bar's 130 grey levels in them), the disc in front of it is measured

@@ -143,9 +143,36 @@ pub fn robust_fit(points: &[[f64; 2]], oversampling: f64) -> Option<CircleFit> {
     })
 }
 
+/// Where one ray's edge lies (`edge_points`): the grey `level` its profile crosses there, and
+/// how far it may `dip` and rise again inside before the ray is taken to cross a marker;
+/// `dark`: the disc is darker than the ground on this side.
+#[derive(Clone, Copy, Debug)]
+pub struct RayLevel {
+    pub level: f64,
+    pub dip: f64,
+    pub dark: bool,
+}
+
+impl RayLevel {
+    /// A ray that gives no edge.
+    const NONE: RayLevel = RayLevel {
+        level: f64::INFINITY,
+        dip: 0.0,
+        dark: false,
+    };
+}
+
+/// The ground round a disc (`edge_points`): its level, and how far below it a profile must
+/// sink beyond its crossing to show a limb darker than the ground there (`trough`).
+#[derive(Clone, Copy, Debug)]
+pub struct Ground {
+    pub level: f64,
+    pub trough: f64,
+}
+
 /// Edge points of the disc around `centre`: along ray k (of `ray_levels.len()`, evenly spaced
 /// in angle), the first fall through its level outward from inside the disc, interpolated
-/// linearly between samples; `ray_levels[k]` is (level, dip).
+/// linearly between samples.
 ///
 /// A ray that crosses a marker is not used: its profile dips and rises again inside the disc
 /// (by more than `dip`), or rises back above `level` just after the "edge". Dark markers near
@@ -153,17 +180,26 @@ pub fn robust_fit(points: &[[f64; 2]], oversampling: f64) -> Option<CircleFit> {
 /// on a few rays and bias the centre by a slowly varying few hundredths of a pixel — errors that
 /// do not average out along a trajectory.
 ///
-/// Nor is a ray whose samples up to its crossing read a static backdrop standing out from the
-/// ground by more than `dip` (`GreyImage::ground`: a tube end, a ruler): the sphere hides it,
-/// so there the normalised edge is the sphere's shading less the backdrop, and its crossing
-/// lies anywhere. The grey-level fit models that; the edge points are only its start.
+/// Nor is a ray whose samples up to its crossing read a static backdrop that differs by more
+/// than `dip` from what it is where the ray starts (`GreyImage::ground`: a tube end's or a
+/// ruler's edge): the sphere hides it, so there the normalised edge is the sphere's shading
+/// less the backdrop, and its crossing lies anywhere. (A backdrop lifted alike along the whole
+/// ray, as a grey ground's vignetting lifts it, only shifts the levels the ray's own rim set.) The grey-level fit models that; the edge points are only its start.
+///
+/// A sphere lit from the side over a grey ground can be darker than the ground at its limb
+/// while brighter inside: its shading falls through the ground's level before the limb, and
+/// then rises to it at the limb. So where a ray's profile sinks more than `ground.trough`
+/// below the ground beyond its crossing, the edge is where it rises again, halfway from its
+/// lowest to the ground; and a ray `dark` all the way (the disc below the ground on that side)
+/// is read reflected about the ground, so that the same rules find its rise.
 /// Returns the points and the number of rays left out for such a backdrop.
 pub fn edge_points(
     img: &GreyImage,
     view: &View,
     centre: [f64; 2],
     radius_px: f64,
-    ray_levels: &[(f64, f64)],
+    ray_levels: &[RayLevel],
+    ground: Ground,
 ) -> (Vec<[f64; 2]>, usize) {
     let rays = ray_levels.len();
     let mut pts = Vec::with_capacity(rays);
@@ -171,20 +207,45 @@ pub fn edge_points(
     let step = 0.2;
     let r_start = (radius_px - 3.0).max(radius_px * 0.4);
     let r_end = radius_px + 3.0;
-    for (k, &(level, dip)) in ray_levels.iter().enumerate() {
+    for (k, ray) in ray_levels.iter().enumerate() {
+        let (level, dip) = (ray.level, ray.dip);
+        // The profile the right way up: bright inside, whichever side of the ground.
+        let upright = |val: f64| {
+            if ray.dark {
+                2.0 * ground.level - val
+            } else {
+                val
+            }
+        };
         let a = std::f64::consts::TAU * k as f64 / rays as f64;
         let (dx, dy) = (a.cos(), a.sin());
+        let at = |r: f64| {
+            img.sample(centre[0] + r * dx, centre[1] + r * dy)
+                .map(upright)
+        };
         let mut prev: Option<(f64, f64)> = None;
         let mut was_inside = false;
         let mut lowest_inside = f64::INFINITY;
         let mut r = r_start;
+        // What the backdrop is where the ray starts, inside the disc: a ray is hidden where
+        // the backdrop changes along it (a tube end's or a ruler's edge), not where the whole
+        // ground is lifted (a grey ground's vignetting, 20 levels across a view).
+        let (u0, v0) = (centre[0] + r * dx, centre[1] + r * dy);
+        let reference = if u0 >= 0.0 && v0 >= 0.0 && u0 < img.width as f64 && v0 < img.height as f64
+        {
+            img.ground_at(u0.round() as usize, v0.round() as usize) as f64
+        } else {
+            0.0
+        };
         while r <= r_end {
             let (u, v) = (centre[0] + r * dx, centre[1] + r * dy);
             if !view.contains(u, v) {
                 break;
             }
-            let Some(val) = img.sample(u, v) else { break };
-            if img.ground_near(u, v) > dip {
+            let Some(val) = at(r) else {
+                break;
+            };
+            if img.ground_off(u, v, reference) > dip {
                 hidden += 1;
                 break;
             }
@@ -198,12 +259,31 @@ pub fn edge_points(
                 if let Some((pr, pv)) = prev {
                     let f = (pv - level) / (pv - val);
                     let re = pr + f * (r - pr);
-                    let rises_again = (1..=8).any(|j| {
-                        let rr = r + j as f64 * step;
-                        img.sample(centre[0] + rr * dx, centre[1] + rr * dy)
-                            .is_some_and(|w| w >= level)
-                    });
-                    if !rises_again {
+                    // The profile just past the crossing, read once for both checks below.
+                    let mut past = [None; PAST_SAMPLES];
+                    for (j, w) in past.iter_mut().enumerate() {
+                        *w = at(r + j as f64 * step);
+                    }
+                    let rises_again = past[1..=8].iter().any(|w| w.is_some_and(|w| w >= level));
+                    let limb = if rises_again || ray.dark {
+                        Some(re)
+                    } else {
+                        let inside = |j: usize| {
+                            let rr = r + j as f64 * step;
+                            rr <= r_end && view.contains(centre[0] + rr * dx, centre[1] + rr * dy)
+                        };
+                        let profile = |j: usize| {
+                            if !inside(j) {
+                                None
+                            } else if j < PAST_SAMPLES {
+                                past[j]
+                            } else {
+                                at(r + j as f64 * step)
+                            }
+                        };
+                        limb_beyond(&profile, r, step, ground).unwrap_or(Some(re))
+                    };
+                    if let (false, Some(re)) = (rises_again, limb) {
                         pts.push([centre[0] + re * dx, centre[1] + re * dy]);
                     }
                 }
@@ -214,6 +294,51 @@ pub fn edge_points(
         }
     }
     (pts, hidden)
+}
+
+/// Samples of a ray's profile read past its crossing (`edge_points`): the crossing's, and 2 px
+/// beyond it, as far as a limb darker than the ground is looked for (`limb_beyond`).
+const PAST_SAMPLES: usize = 11;
+
+/// Beyond a ray's crossing at `r`, its profile's j-th sample `profile(j)` at r + j·`step`
+/// (None past the ray's end or the view's): None where it does not sink more than
+/// `ground.trough` below the ground within the first `PAST_SAMPLES` (the crossing is the
+/// edge); else the radius where it rises again halfway from its lowest to the ground
+/// (Some(None) if it does not before the ray ends).
+fn limb_beyond(
+    profile: &dyn Fn(usize) -> Option<f64>,
+    r: f64,
+    step: f64,
+    ground: Ground,
+) -> Option<Option<f64>> {
+    let sunk = |w: f64| w < ground.level - ground.trough;
+    let (mut low, mut lowest) = (0, f64::INFINITY);
+    let mut j = 0;
+    while let Some(w) = profile(j) {
+        if w < lowest {
+            (low, lowest) = (j, w);
+        }
+        j += 1;
+        if j >= PAST_SAMPLES && !sunk(lowest) {
+            break;
+        }
+    }
+    if !sunk(lowest) {
+        return None;
+    }
+    // Past the lowest sample, the first rise through halfway to the ground.
+    let half = 0.5 * (lowest + ground.level);
+    let mut prev = lowest;
+    let mut k = low + 1;
+    while let Some(w) = profile(k) {
+        if prev < half && w >= half {
+            let r0 = r + (k - 1) as f64 * step;
+            return Some(Some(r0 + (half - prev) / (w - prev) * step));
+        }
+        prev = w;
+        k += 1;
+    }
+    Some(None)
 }
 
 /// How much of a circle its edge points go round: the number of 10° sectors (of 36) that hold
@@ -238,6 +363,40 @@ const PARTIAL_ARC_SECTORS: usize = 20;
 /// smear add up), so the edge there moves outwards and pulls the centre towards the other
 /// sphere — a bias that grows as they approach and tilts the last frames before the impact.
 pub const NEIGHBOUR_MARGIN_PX: f64 = 3.0;
+
+/// How many of the ground's noise σ a profile must sink below the ground beyond its crossing
+/// to show a limb darker than the ground (`edge_points`): noise alone, over the eleven
+/// samples a ray reads beyond it, reaches 2–3σ.
+const LIMB_TROUGH_NOISE: f64 = 6.0;
+
+/// The ground's noise σ just outside the disc: the median absolute deviation of samples 2.5 px
+/// beyond its edge (what else stands there, the other sphere or a backdrop's edge, is a minority).
+fn ground_noise(
+    img: &GreyImage,
+    view: &View,
+    centre: [f64; 2],
+    radius_px: f64,
+    rays: usize,
+) -> f64 {
+    let mut ring: Vec<f64> = (0..rays)
+        .filter_map(|k| {
+            let a = std::f64::consts::TAU * k as f64 / rays as f64;
+            let (u, v) = (
+                centre[0] + (radius_px + 2.5) * a.cos(),
+                centre[1] + (radius_px + 2.5) * a.sin(),
+            );
+            view.contains(u, v).then(|| img.sample(u, v)).flatten()
+        })
+        .collect();
+    if ring.len() < 8 {
+        return f64::INFINITY;
+    }
+    ring.sort_by(f64::total_cmp);
+    let median = ring[ring.len() / 2];
+    let mut dev: Vec<f64> = ring.iter().map(|x| (x - median).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    1.4826 * dev[dev.len() / 2]
+}
 
 /// A circle through edge points on rays from a rough centre, where the grey level crosses
 /// halfway between `background` and the shading just inside the edge on that side; and whether
@@ -279,25 +438,34 @@ pub fn fit_edges(
         // dots, darker, pull down only at the bottom), so that a dot does not lower a level.
         let half = (rays / 16).max(2);
         let mut window: Vec<f64> = Vec::with_capacity(2 * half + 1);
-        let ray_levels: Vec<(f64, f64)> = (0..rays)
+        let ray_levels: Vec<RayLevel> = (0..rays)
             .map(|k| {
                 window.clear();
                 window.extend((0..=2 * half).filter_map(|j| rim[(k + rays + j - half) % rays]));
                 if window.is_empty() {
-                    return (f64::INFINITY, 0.0);
+                    return RayLevel::NONE;
                 }
                 window.sort_by(f64::total_cmp);
                 let interior = window[window.len() * 3 / 4];
-                if interior <= background {
-                    return (f64::INFINITY, 0.0);
+                if interior == background {
+                    return RayLevel::NONE;
                 }
-                (
-                    background + 0.5 * (interior - background),
-                    0.1 * (interior - background),
-                )
+                // Below the ground on this side: the same levels about the ground reflected
+                // (dots, darker still, sit at the bottom of the rim either way).
+                let contrast = (interior - background).abs();
+                RayLevel {
+                    level: background + 0.5 * contrast,
+                    dip: 0.1 * contrast,
+                    dark: interior < background,
+                }
             })
             .collect();
-        let (mut pts, hidden) = edge_points(img, view, centre, radius_px, &ray_levels);
+        let ground = Ground {
+            level: background,
+            // (At least a grey level: a render without noise shows none.)
+            trough: (LIMB_TROUGH_NOISE * ground_noise(img, view, centre, radius_px, rays)).max(1.0),
+        };
+        let (mut pts, hidden) = edge_points(img, view, centre, radius_px, &ray_levels, ground);
         if let Some((oc, or)) = other {
             pts.retain(|p| (p[0] - oc[0]).hypot(p[1] - oc[1]) > or + NEIGHBOUR_MARGIN_PX);
         }
