@@ -393,9 +393,12 @@ fn ground_noise(
     }
     ring.sort_by(f64::total_cmp);
     let median = ring[ring.len() / 2];
-    let mut dev: Vec<f64> = ring.iter().map(|x| (x - median).abs()).collect();
-    dev.sort_by(f64::total_cmp);
-    1.4826 * dev[dev.len() / 2]
+    // The deviations in place of the samples: one allocation per fit, not two.
+    for x in ring.iter_mut() {
+        *x = (*x - median).abs();
+    }
+    let mid = ring.len() / 2;
+    1.4826 * *ring.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// A circle through edge points on rays from a rough centre, where the grey level crosses

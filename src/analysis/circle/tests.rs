@@ -642,6 +642,17 @@ fn a_disc_cut_by_the_view_border_is_fitted_on_its_grey_levels() {
     );
 }
 
+/// The k-th of a set of sub-pixel phases spread over a pixel (golden-ratio steps on each axis),
+/// as a world offset in `view`, mm: so that pixel locking averages out over a set of renders.
+fn sub_pixel_phase(view: &View, k: u64) -> V3 {
+    let kf = k as f64;
+    V3::new(
+        (kf * 0.618).fract() / view.px_per_mm,
+        (kf * 0.382).fract() / view.px_per_mm,
+        0.0,
+    )
+}
+
 /// A lone sphere under `look` (its first view's), measured by `refine` at 48 sub-pixel phases
 /// spread over a pixel (so that pixel locking averages out), noise σ = 2, the k-th rendered
 /// with seed `seed + k`: each phase's centre error and the σ the fit claims, px.
@@ -663,12 +674,7 @@ fn lone_sphere_fits_encoded(
     let far = V3::new(100.0, 100.0, 0.0);
     (0..48u64)
         .map(|k| {
-            let kf = k as f64;
-            let c = V3::new(
-                (kf * 0.618).fract() / view.px_per_mm,
-                (kf * 0.382).fract() / view.px_per_mm,
-                0.0,
-            );
+            let c = sub_pixel_phase(&view, k);
             let (mut img, truth) = render_pair(&view, 64, 64, [c, far], &cfg, seed + k);
             if decode {
                 crate::analysis::linear::decode(&mut img, gamma);
@@ -767,12 +773,7 @@ fn a_sphere_darker_than_a_grey_ground_at_its_limb_is_measured() {
         let mut errors = Vec::new();
         let mut worst_radius: f64 = 0.0;
         for k in 0..24u64 {
-            let kf = k as f64;
-            let c = V3::new(
-                (kf * 0.618).fract() / view.px_per_mm,
-                (kf * 0.382).fract() / view.px_per_mm,
-                0.0,
-            );
+            let c = sub_pixel_phase(&view, k);
             let (img, truth) = render_pair(&view, 64, 64, [c, far], &cfg, 4500 + k);
             let t = truth[0];
             // The premise: the limb away from the lamp (its azimuth is in image axes, u and v)
@@ -914,11 +915,7 @@ fn a_fit_started_far_from_a_blurred_disc_is_tried_again_from_where_it_went() {
     let mut worst: f64 = 0.0;
     for k in 0..12u64 {
         let kf = k as f64;
-        let c = V3::new(
-            (kf * 0.618).fract() / view.px_per_mm,
-            (kf * 0.382).fract() / view.px_per_mm,
-            0.0,
-        );
+        let c = sub_pixel_phase(&view, k);
         let (img, truth) = render_pair(&view, 64, 64, [c, far], &cfg, 1300 + k);
         let t = truth[0];
         let angle = kf * 0.9;
