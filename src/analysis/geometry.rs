@@ -27,6 +27,12 @@ impl ViewKind {
         }
     }
 
+    /// Whether the view's image is a mirror image unless the config says (`image_mirrored`):
+    /// the mirror view's is, the direct view's is not.
+    pub fn mirrored_by_default(self) -> bool {
+        self == ViewKind::Mirror
+    }
+
     /// The world axis along which this view looks (the one it cannot measure): z for the direct
     /// view, y for the mirror.
     pub fn depth_axis(self) -> usize {
@@ -67,6 +73,8 @@ pub struct View {
     pub v_axis: V3,
     /// Unit vector from the scene towards this view's (virtual) camera.
     pub facing: V3,
+    /// The image is a mirror image of a camera's at the view's place (`image_mirrored`).
+    pub mirrored: bool,
     /// The two world axes this view measures, as (axis along u, axis along v).
     pub axes: [usize; 2],
     /// The lens's radial distortion between the map's ideal image and the recorded one.
@@ -114,13 +122,11 @@ impl View {
             ((sum + diff) * half, (sum - diff) * half)
         };
         // A camera's image axes (u right, v down) and its viewing direction d form a right-handed
-        // frame: u × v = d. A mirror reverses the image, so there u × v = −d. The visible
-        // hemisphere faces back along −d.
+        // frame: u × v = d. A mirror reverses the image (and so does a camera set to flip it),
+        // so there u × v = −d. The visible hemisphere faces back along −d.
         let uxv = ua.cross(&va);
-        let facing = match kind {
-            ViewKind::Direct => -uxv,
-            ViewKind::Mirror => uxv,
-        };
+        let mirrored = g.image_mirrored.unwrap_or(kind.mirrored_by_default());
+        let facing = if mirrored { uxv } else { -uxv };
         let axes = measured_axes(&r1, &r2, kind.depth_axis());
         View {
             kind,
@@ -132,6 +138,7 @@ impl View {
             u_axis: ua,
             v_axis: va,
             facing,
+            mirrored,
             axes,
             lens: Lens::from_config(g),
         }
@@ -324,6 +331,7 @@ impl View {
                     region: self.region,
                     origin_px: Some([origin[0], origin[1]]),
                     matrix_px_per_mm: Some([0, 1].map(|i| [0, 1, 2].map(|j| t[(i, j)]))),
+                    image_mirrored: Some(self.mirrored),
                     ..Default::default()
                 }
             }
@@ -334,6 +342,7 @@ impl View {
                     projection: Some(
                         [0, 1, 2].map(|i| [t[(i, 0)], t[(i, 1)], t[(i, 2)], p[(i, 3)]]),
                     ),
+                    image_mirrored: Some(self.mirrored),
                     ..Default::default()
                 }
             }
@@ -488,6 +497,27 @@ mod tests {
                 assert!((val - p[axis]).abs() < 1e-12);
             }
         }
+    }
+
+    /// `image_mirrored` turns the hemisphere a view sees and nothing else: a direct view whose
+    /// camera flips its image (x leftwards) still faces +z, where without the key the same map
+    /// is a camera behind; a mirror view that is not a mirror image faces the other way.
+    #[test]
+    fn image_mirrored_says_which_hemisphere_a_view_sees() {
+        let flipped = "px_per_mm=2.1576\norigin_px=[119.5,44.0]\nu_axis=\"-x\"\nv_axis=\"-y\"";
+        let behind = config_view(ViewKind::Direct, flipped);
+        let said = config_view(ViewKind::Direct, &format!("{flipped}\nimage_mirrored=true"));
+        assert_eq!(behind.facing, V3::new(0.0, 0.0, -1.0));
+        assert_eq!(said.facing, V3::new(0.0, 0.0, 1.0));
+        assert!(said.mirrored && !behind.mirrored);
+        let p = V3::new(3.0, -2.0, 1.5);
+        assert_eq!(said.project(&p), behind.project(&p));
+        let mirror = "px_per_mm=2.1175\norigin_px=[121.0,144.0]\nu_axis=\"+x\"\nv_axis=\"+z\"";
+        let unflipped = config_view(ViewKind::Mirror, &format!("{mirror}\nimage_mirrored=false"));
+        assert_eq!(unflipped.facing, V3::new(0.0, 1.0, 0.0));
+        // The turned copies the geometry's uncertainty re-runs keep it.
+        let turned = said.turned(&nalgebra::Matrix3::identity(), 1.0);
+        assert_eq!(turned.facing, said.facing);
     }
 
     fn config_view(kind: ViewKind, keys: &str) -> View {

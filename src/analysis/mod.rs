@@ -15,6 +15,7 @@ pub mod circle;
 pub mod detect;
 pub mod geometry;
 mod geometry_sigma;
+mod handedness;
 pub mod image;
 mod impulse;
 pub mod kinematics;
@@ -156,6 +157,9 @@ pub struct Details {
     pub phases: [Vec<usize>; 4],
     /// Spin measurements of [a pre, b pre, a post, b post].
     pub spins: Vec<spin::SpinMeasurement>,
+    /// Where the markers said a view's image is mirrored otherwise than the config does
+    /// (`handedness`): the spins were measured as they turn.
+    pub handedness: Option<handedness::Verdict>,
 }
 
 pub fn analyze_detailed(
@@ -207,18 +211,39 @@ pub fn analyze_detailed(
         &memo,
         &mut |i, n| progress(i / 2, n),
     )?;
+    let first_unmeasured = unmeasured.clone();
     let (warnings, frames_dropped) = (src.warnings(), src.frames_dropped());
     let input = || Input {
         info: info.clone(),
         warnings: warnings.clone(),
         frames_dropped,
         first_pass_spins: [None; 4],
+        settle_handedness: true,
     };
     // The first pass's report gives the spins that carry its dots round each rim; the
     // geometry's uncertainty (re-running the fits) is added to the final one only.
-    let first = stages::timed(stages::Stage::Fits, || {
+    let mut first = stages::timed(stages::Stage::Fits, || {
         observations_once(input(), obs, unmeasured, views.clone(), cfg)
     })?;
+    // The markers turn as if a view's image were mirrored otherwise than the config says
+    // (`handedness`): from here on that view sees the other hemisphere, its first-pass
+    // markers lifted so too, so that the dots carried into the second pass and its own markers
+    // agree with the spins; the report keeps the warning.
+    let mut views = views;
+    let mut handedness_warning = None;
+    if let Some(verdict) = first.1.handedness.take() {
+        handedness_warning = Some(handedness::warning(&verdict, &views));
+        views = handedness::reflected_views(&views, &verdict);
+        let mut obs = std::mem::take(&mut first.1.obs);
+        handedness::reflect_markers(&mut obs, &verdict);
+        first = stages::timed(stages::Stage::Fits, || {
+            let input = Input {
+                settle_handedness: false,
+                ..input()
+            };
+            observations_once(input, obs, first_unmeasured.clone(), views.clone(), cfg)
+        })?;
+    }
     let pass = SecondPass {
         dots: rim_dots(&first.1, cfg),
         radii: radius_misfit::held_radii(
@@ -247,6 +272,8 @@ pub fn analyze_detailed(
         analyze_observations(
             Input {
                 first_pass_spins,
+                warnings: warnings.iter().cloned().chain(handedness_warning).collect(),
+                settle_handedness: false,
                 ..input()
             },
             obs,
@@ -274,6 +301,10 @@ pub struct Input {
     /// (`analyze_detailed`): each spin the second pass measures carries its difference from it
     /// as one more error (`widen_by_first_pass`). None for centres digitised elsewhere.
     pub first_pass_spins: [Option<V3>; 4],
+    /// Whether this run's markers may settle which hemisphere each view sees (`handedness`):
+    /// the first pass's. The second pass and the geometry's re-runs keep the views it settled
+    /// on (each check is 16 spin fits, for nothing once the views are settled).
+    pub settle_handedness: bool,
 }
 
 /// Everything after per-frame measurement: calibration, fits, impact, spins, the report, with

@@ -177,6 +177,9 @@ pub struct SpinMeasurement {
     /// The spin was followed from a search over rotations per frame (`spin_search`), not from
     /// rest: the markers turned too far between frames for the first pass's gate.
     pub searched: bool,
+    /// The marker sightings the whole-track fit was given (the last gate's tracks; none for the
+    /// thesis's method): what `handedness` lifts again.
+    pub sightings: Vec<Sighting>,
 }
 
 impl SpinMeasurement {
@@ -288,7 +291,7 @@ fn follow(
         // Whole marker tracks first: they use every sighting, also of a marker no other shares
         // a frame pair with. The pair rotations where the tracks are too few or too short, and
         // for the thesis's method, which is kept as the thesis had it.
-        let (fit, effective_tracks) = match method {
+        let fit = match method {
             RotationMethod::Kabsch => {
                 let start = rotation::ls_omega_of(&pairs).unwrap_or(omega);
                 // Each phase of each sphere its own sources for the model terms' influence.
@@ -301,16 +304,19 @@ fn follow(
                     spin_tracks::fit_spin_only(&seen, start)
                 };
                 let fit = fit.or_else(|| rotation::fit_spin(&pairs));
-                (fit, spin_tracks::effective_tracks(&seen))
+                let tracks = spin_tracks::effective_tracks(&seen);
+                (fit, tracks, seen)
             }
-            RotationMethod::Thesis => (rotation::fit_spin(&pairs), f64::INFINITY),
+            RotationMethod::Thesis => (rotation::fit_spin(&pairs), f64::INFINITY, Vec::new()),
         };
+        let (fit, effective_tracks, sightings) = fit;
         out = SpinMeasurement {
             fit,
             markers_per_frame: markers_per_frame(&tracked),
             pairs,
             effective_tracks,
             searched: false,
+            sightings,
         };
         match &out.fit {
             Some(f) => omega = f.omega,

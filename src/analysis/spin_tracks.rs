@@ -384,6 +384,22 @@ pub fn fit_spin_only(sightings: &[Sighting], start: V3) -> Option<SpinFit> {
     fit_with(sightings, start, Offsets::Constant)
 }
 
+/// How well one rigid turn explains the sightings: the least sum of squared (weighted)
+/// residuals of a constant ω with each view's constant offset, from the linear start and each
+/// of `starts`. No sighting is dropped, so that ways of lifting the same sightings compare on
+/// the same ones (`handedness`).
+pub fn misfit(sightings: &[Sighting], starts: &[V3]) -> Option<f64> {
+    let problem = build(sightings, Offsets::Constant)?;
+    let mut buf = Vec::new();
+    problem
+        .linear_start()
+        .into_iter()
+        .chain(starts.iter().copied())
+        .filter_map(|s| problem.solve(s))
+        .map(|w| problem.cost(&w, &mut buf))
+        .min_by(f64::total_cmp)
+}
+
 /// One fit, with or without each view's constant offset (`fit` makes both and reports the
 /// first, widened by how far the second lies from it).
 fn fit_with(sightings: &[Sighting], start: V3, offsets: Offsets) -> Option<SpinFit> {

@@ -59,7 +59,7 @@ pub(crate) fn config_from_calibration(cal: &Value) -> Result<Config, String> {
         mass_g: Some(mb),
     });
     cfg.analysis.gravity_mm_s2 = num(&cal["gravity_mps2"]).ok_or("gravity_mps2 missing")? * 1e3;
-    let view = |name: &str| -> Result<ViewGeometry, String> {
+    let view_map = |name: &str| -> Result<ViewGeometry, String> {
         let v = &c[name];
         let rows = v["rows"].as_array().ok_or(format!("{name}.rows missing"))?;
         let (r0, r1) = (
@@ -102,6 +102,30 @@ pub(crate) fn config_from_calibration(cal: &Value) -> Result<Config, String> {
         Ok(ViewGeometry::shorthand(
             region, axes[0].1, origin, &axes[0].0, &axes[1].0,
         ))
+    };
+    let view = |name: &str| -> Result<ViewGeometry, String> {
+        let mut g = view_map(name)?;
+        // Whether the image is mirrored, from the side its camera is on: an unmirrored
+        // camera's u × v points away from it (`image_mirrored`; said only where it is not the
+        // view's default).
+        let towards = &c[name]["view_direction_to_camera"];
+        if let (Some((u, v)), Some(d)) = (
+            g.local_affine().map(|(m, _)| (m[0], m[1])),
+            (0..3)
+                .map(|k| num(&towards[k]))
+                .collect::<Option<Vec<f64>>>(),
+        ) {
+            let uxv = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
+            let mirrored = uxv.iter().zip(&d).map(|(a, b)| a * b).sum::<f64>() > 0.0;
+            if mirrored != (name == "mirror") {
+                g.image_mirrored = Some(mirrored);
+            }
+        }
+        Ok(g)
     };
     cfg.geometry.direct = Some(view("direct")?);
     cfg.geometry.mirror = Some(view("mirror")?);
@@ -213,13 +237,16 @@ fn shorthand_of(g: &ViewGeometry) -> Option<ViewGeometry> {
         ))
     };
     let norm = |r: &[f64; 3]| r.iter().map(|x| x * x).sum::<f64>().sqrt();
-    Some(ViewGeometry::shorthand(
-        g.region,
-        (norm(&m[0]) * norm(&m[1])).sqrt(),
-        o,
-        &axis(&m[0])?,
-        &axis(&m[1])?,
-    ))
+    Some(ViewGeometry {
+        image_mirrored: g.image_mirrored,
+        ..ViewGeometry::shorthand(
+            g.region,
+            (norm(&m[0]) * norm(&m[1])).sqrt(),
+            o,
+            &axis(&m[0])?,
+            &axis(&m[1])?,
+        )
+    })
 }
 
 /// e, ψ1, ψ2 against the truth (error, error / σ) with the maps `calibrate` finds on the

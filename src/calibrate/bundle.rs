@@ -2,7 +2,7 @@
 //! ballistic trajectory with g known, seen through the direct view's and the mirror's maps;
 //! Levenberg–Marquardt with weak priors on what the flights cannot tell apart, outliers left out.
 
-use super::maps::{direct_matrix, facing_of, mirror_matrix};
+use super::maps::{direct_matrix, facing_of, mirror_matrix, x_sign};
 use super::provisional::z_sign;
 use super::{Fitted, MirrorFit};
 use crate::analysis::calibration::fit_line;
@@ -156,7 +156,8 @@ pub(super) fn fit_bundle(
     let slot = |k: usize| flights.iter().position(|&x| x == k).unwrap_or(0);
     // Starting trajectories: the direct view inverted with the starting map; z from the
     // provisional mirror, each a straight line per flight.
-    let m0 = direct_matrix(start.0, start.1);
+    let sd = x_sign(&views[di]);
+    let m0 = direct_matrix(start.0, start.1, sd);
     let inv = nalgebra::Matrix2::new(m0[0][0], m0[0][1], m0[1][0], m0[1][1])
         .try_inverse()
         .ok_or("the direct view's starting map is singular")?;
@@ -205,7 +206,7 @@ pub(super) fn fit_bundle(
     let weights = std::cell::RefCell::new(vec![1.0; pts.len()]);
     let residuals = |th: &DVector<f64>| -> DVector<f64> {
         let weights = weights.borrow();
-        let md = direct_matrix(th[0], th[1]);
+        let md = direct_matrix(th[0], th[1], sd);
         let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], sx, f);
         let (fd, fm) = (
             facing_of(&md, ViewKind::Direct),
@@ -372,7 +373,7 @@ pub(super) fn fit_bundle(
         }
     };
     let mean_depth = |view: usize| {
-        let md = direct_matrix(th[0], th[1]);
+        let md = direct_matrix(th[0], th[1], sd);
         let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], sx, f);
         let facing = if view == 0 {
             facing_of(&md, ViewKind::Direct)
@@ -536,7 +537,7 @@ mod tests {
                 }
             };
             let (od, om) = ([119.5, 44.0], [121.0, 144.0]);
-            let md = direct_matrix(2.1576, roll_d);
+            let md = direct_matrix(2.1576, roll_d, 1.0);
             let mm = mirror_matrix(2.1175, turn_m, 1.0, 1.0);
             let direct = View::from_config(
                 ViewKind::Direct,
@@ -600,7 +601,7 @@ mod tests {
             ViewKind::Direct,
             &view_geometry(
                 [0, 0, 240, 96],
-                direct_matrix(2.1576, 0.0),
+                direct_matrix(2.1576, 0.0, 1.0),
                 od,
                 ViewKind::Direct,
                 kappa,
@@ -667,7 +668,7 @@ mod tests {
                 ViewKind::Direct,
                 &view_geometry(
                     [0, 0, 240, 96],
-                    direct_matrix(2.1576, 0.4f64.to_radians()),
+                    direct_matrix(2.1576, 0.4f64.to_radians(), 1.0),
                     od,
                     ViewKind::Direct,
                     zero,

@@ -7,10 +7,27 @@ use crate::analysis::geometry::{ViewKind, V3};
 use crate::config::ViewGeometry;
 
 /// Direct view: M = s·[[cos φ, −sin φ, 0], [−sin φ, −cos φ, 0]] (φ: gravity's image turned
-/// from straight down towards +u).
-pub(super) fn direct_matrix(s: f64, phi: f64) -> [[f64; 3]; 2] {
+/// from straight down towards +u), its x column times `x_sign`: −1 where the config's direct
+/// view is a mirror image of the x–y plane (a camera that flips its image, `image_mirrored`),
+/// so that the world calibrate fits is the config's and the mirror's x is matched to it alike.
+pub(super) fn direct_matrix(s: f64, phi: f64, x_sign: f64) -> [[f64; 3]; 2] {
     let (sp, cp) = phi.sin_cos();
-    [[s * cp, -s * sp, 0.0], [-s * sp, -s * cp, 0.0]]
+    [
+        [x_sign * s * cp, -s * sp, 0.0],
+        [-x_sign * s * sp, -s * cp, 0.0],
+    ]
+}
+
+/// `direct_matrix`'s x sign for the config's direct view: −1 where its image of the x–y plane
+/// is a mirror image (u × v along +z: x to the left with gravity down, or gravity up with x to
+/// the right), else 1. The roll, from gravity's image, does the rest.
+pub(super) fn x_sign(view: &crate::analysis::geometry::View) -> f64 {
+    let (u, v) = (view.u_axis, view.v_axis);
+    if u.x * v.y - u.y * v.x > 0.0 {
+        -1.0
+    } else {
+        1.0
+    }
 }
 
 /// M = s·N·Qᵀ: the nominal mirror rows N = [[sx, 0, 0], [0, 0, f]] (u along ±x, v along ±z)
@@ -66,5 +83,41 @@ pub(super) fn view_geometry(
             [-k * f[0], -k * f[1], -k * f[2], 1.0],
         ]),
         ..Default::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::geometry::views;
+    use crate::config::Config;
+
+    /// A config whose direct view is a mirror image (a camera set to flip its image, x to the
+    /// left) is fitted as one: the matrix at no roll is the config's own, gravity's image is
+    /// straight down either way, and an unflipped config keeps x to the right.
+    #[test]
+    fn a_flipped_direct_view_is_fitted_flipped() {
+        let mut cfg = Config::default_config();
+        let plain = views(&cfg)[0].clone();
+        assert_eq!(x_sign(&plain), 1.0);
+        if let Some(d) = cfg.geometry.direct.as_mut() {
+            d.u_axis = Some("-x".into());
+            d.image_mirrored = Some(true);
+        }
+        let flipped = views(&cfg)[0].clone();
+        assert_eq!(x_sign(&flipped), -1.0);
+        let s = 2.1576;
+        let m = direct_matrix(s, 0.0, x_sign(&flipped));
+        for (row, axis) in m.iter().zip([flipped.u_axis, flipped.v_axis]) {
+            for k in 0..3 {
+                assert!((row[k] - s * axis[k]).abs() < 1e-12, "{m:?}");
+            }
+        }
+        // Gravity (−y) images along +v, turned towards +u by the roll, flipped or not.
+        for sign in [1.0, -1.0] {
+            let m = direct_matrix(s, 0.1, sign);
+            let g = [-m[0][1], -m[1][1]];
+            assert!((g[0].atan2(g[1]) - 0.1).abs() < 1e-12, "{sign}: {g:?}");
+        }
     }
 }

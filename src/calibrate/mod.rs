@@ -34,7 +34,7 @@ use crate::analysis::{self, AnalysisError, FrameSource};
 use crate::config::Config;
 use bundle::{fit_bundle, LensFrame};
 use flights::{diameter_scale, flights, parabola_acceleration};
-use maps::{direct_matrix, distance, mirror_matrix, view_geometry};
+use maps::{direct_matrix, distance, mirror_matrix, view_geometry, x_sign};
 use provisional::{align_mirror, line_fit, local_scale, set_scale, z_sign};
 
 /// A fitted parameter and its standard deviation.
@@ -541,7 +541,11 @@ pub fn calibrate(
         m.scale.value *= k;
         m.scale.sigma = m.scale.value * (ratio + rel(scale).powi(2)).sqrt();
     }
-    let m_direct = direct_matrix(scale.value, bundle.direct_roll.value.to_radians());
+    let m_direct = direct_matrix(
+        scale.value,
+        bundle.direct_roll.value.to_radians(),
+        x_sign(&views[di]),
+    );
     let mut geometry = crate::config::Geometry {
         direct: Some(view_geometry(
             direct_cfg.region,
@@ -592,6 +596,13 @@ pub fn calibrate(
             fit.scale_from_diameter = d;
         }
         mirror = Some(fit);
+    }
+    // Whether each image is mirrored is the user's to say (no flight tells): kept as given.
+    if let Some(v) = geometry.direct.as_mut() {
+        v.image_mirrored = direct_cfg.image_mirrored;
+    }
+    if let Some(v) = geometry.mirror.as_mut() {
+        v.image_mirrored = cfg.geometry.mirror.as_ref().and_then(|m| m.image_mirrored);
     }
     if lens_found {
         let lens = frame.lens(lens_k1.value);

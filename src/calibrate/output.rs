@@ -183,10 +183,13 @@ impl Calibrated {
     }
 }
 
-/// The keys that say how well a view's map is known (none where calibrate set none), and its
-/// lens where one was found.
+/// The keys that say how well a view's map is known (none where calibrate set none), its lens
+/// where one was found, and whether its image is mirrored where the config said.
 fn uncertainty_keys(v: &crate::config::ViewGeometry) -> String {
     let mut out = String::new();
+    if let Some(m) = v.image_mirrored {
+        out += &format!("image_mirrored = {m}\n");
+    }
     if let (Some(k1), Some(c), Some(r)) = (v.lens_k1, v.lens_centre_px, v.lens_radius_px) {
         out += &format!(
             "lens_k1 = {k1:.6}\nlens_centre_px = [{:.2}, {:.2}]\nlens_radius_px = {r:.4}\n",

@@ -314,6 +314,13 @@ pub struct ViewGeometry {
     pub lens_centre_px: Option<[f64; 2]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lens_radius_px: Option<f64>,
+    /// The image is a mirror image of what a camera at the view's place would record: the view
+    /// is seen by way of a mirror, or the camera flips its image (a readout setting many
+    /// high-speed cameras have). It decides which hemisphere of a sphere the view sees, so the
+    /// depth its markers are lifted to: no map tells a flipped image from a camera on the other
+    /// side. Default: true for the mirror view, false for the direct view.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_mirrored: Option<bool>,
 }
 
 impl ViewGeometry {

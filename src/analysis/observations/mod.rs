@@ -248,6 +248,7 @@ pub(super) fn observations_once(
         warnings: input_warnings,
         frames_dropped,
         first_pass_spins,
+        settle_handedness,
     } = input;
     let set = Setup::of(cfg, info.frame_rate_hz);
     let mut placed = place(obs, views, cfg);
@@ -288,6 +289,7 @@ pub(super) fn observations_once(
         &shared_bias,
         cfg,
         first_pass_spins,
+        settle_handedness,
         &mut warnings,
     );
     let spin_fits = spins.all_four(&mut warnings);
@@ -355,6 +357,7 @@ pub(super) fn observations_once(
             impact_time_s: split + d.tau_c,
             phases: ph,
             spins: spins.measured,
+            handedness: spins.handedness,
         },
     ))
 }

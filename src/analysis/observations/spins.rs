@@ -4,6 +4,7 @@
 //! velocities are 2-D.
 
 use super::super::geometry::View;
+use super::super::handedness;
 use super::super::impulse;
 use super::super::kinematics::{derive, Bodies, Fits, V3};
 use super::super::phases::{self, relift_on_trajectories};
@@ -26,6 +27,9 @@ pub(super) struct PhaseSpins {
     pub(super) reconciled: [Option<SpinFit>; 4],
     /// The impulse–spin check of a and b.
     pub(super) checks: [Option<SpinCheck>; 2],
+    /// Where the markers turn as if a view's image were mirrored otherwise than the config
+    /// says: which, and how clearly (the spins above are measured so).
+    pub(super) handedness: Option<handedness::Verdict>,
 }
 
 impl PhaseSpins {
@@ -41,19 +45,37 @@ impl PhaseSpins {
         shared_bias: &[[f64; 3]; 4],
         cfg: &Config,
         first_pass_spins: [Option<V3>; 4],
+        settle_handedness: bool,
         warnings: &mut Vec<String>,
     ) -> PhaseSpins {
         let method = cfg.analysis.rotation;
-        let obs_spin = relift_on_trajectories(obs, views, fits, ph, split, set.g, set.radii);
-        let measured: Vec<SpinMeasurement> = (0..4)
-            .map(|k| {
-                let mut m = spin::measure(&obs_spin, &ph[k], k % 2, method);
-                if let (Some(fit), Some(earlier)) = (m.fit.as_mut(), first_pass_spins[k]) {
-                    widen_by_first_pass(fit, earlier, k);
-                }
-                m
-            })
-            .collect();
+        let measure = |views: &[View]| -> Vec<SpinMeasurement> {
+            let obs_spin = relift_on_trajectories(obs, views, fits, ph, split, set.g, set.radii);
+            (0..4)
+                .map(|k| {
+                    let mut m = spin::measure(&obs_spin, &ph[k], k % 2, method);
+                    if let (Some(fit), Some(earlier)) = (m.fit.as_mut(), first_pass_spins[k]) {
+                        widen_by_first_pass(fit, earlier, k);
+                    }
+                    m
+                })
+                .collect()
+        };
+        let mut measured = measure(views);
+        let mut verdict = None;
+        // A view lifting its markers to the hemisphere it does not see (an image mirrored
+        // otherwise than the config says) turns its tracks into the spin's reflection, and the
+        // views then disagree about one spin (`handedness`). Where the markers clearly say so,
+        // they are lifted again as they turn, and the report says which key to set. (Settled
+        // once, in the first pass: later runs are given the views it settled on.)
+        let found = settle_handedness
+            .then(|| handedness::check(&measured, views))
+            .flatten();
+        if let Some(v) = found {
+            measured = measure(&handedness::reflected_views(views, &v));
+            warnings.push(handedness::warning(&v, views));
+            verdict = Some(v);
+        }
         // The impulse–spin check (impulse.rs): the velocities' change fixes each sphere's spin
         // change; the spins are checked against it, combined with it, or completed by it.
         let mut reconciled: [Option<SpinFit>; 4] =
@@ -117,6 +139,7 @@ impl PhaseSpins {
             measured,
             reconciled,
             checks,
+            handedness: verdict,
         }
     }
 
