@@ -16,7 +16,9 @@
 //! either view's (or both views') depths reflected, and the misfits summed over the phases
 //! compared. Where another way fits clearly better, the markers are lifted that way and the
 //! report warns, naming the key to set: a lab whose config is wrong gets the spins its markers
-//! show, and is told.
+//! show, and is told. Where another way fits only somewhat better (a view with one dot track a
+//! phase hardly constrains the spin), the spins stay as configured, each σ widened by its
+//! difference from the other way's spin, and the report says so.
 
 use super::geometry::View;
 use super::spin::SpinMeasurement;
@@ -36,6 +38,18 @@ type V3 = Vector3<f64>;
 /// wrongly assigned costs every way alike, so a wrong handedness shows as a ratio, not noise.
 const CLEARLY_BETTER: f64 = 1.5;
 
+/// Below `CLEARLY_BETTER` and above this, the markers cannot tell which way is right: another
+/// way fits somewhat better (the flipped renders whose mirror view has one dot track a phase:
+/// 1.15–1.49×, their spins 2–34σ off as configured), where a right config never did better
+/// than 1.03× (above). The spins are then reported as configured, each widened by its
+/// difference from the spin the other way gives, and the report says so.
+const IN_DOUBT: f64 = 1.1;
+
+/// The index of the doubt's term among a spin's error sources (`SpinFit::frame_influence`):
+/// one for all four phases, since one fact (which side a view sees) moves them all; far from
+/// every frame's, model term's and impulse term's index.
+const DOUBT_SOURCE: usize = usize::MAX / 4;
+
 /// The fewest tracks (`spin_tracks::effective_tracks`) each view must have in a phase for that
 /// phase to take part: one view's tracks alone cannot tell, and one track of three sightings
 /// or more draws an arc whose sense of turn the other view's must share.
@@ -50,9 +64,17 @@ pub struct Verdict {
     pub misfit_ratio: f64,
 }
 
+impl Verdict {
+    /// The markers clearly turn the other way (`CLEARLY_BETTER`): they are lifted so. Else the
+    /// verdict is a doubt, carried in the spins' σ (`widen_by_doubt`).
+    pub fn clear(&self) -> bool {
+        self.misfit_ratio > CLEARLY_BETTER
+    }
+}
+
 /// Compares the configured handedness with the others on the measured phases' sightings.
 /// None where no phase has enough tracks in two views, or where the configured one fits as
-/// well as any other (within `CLEARLY_BETTER`).
+/// well as any other (within `IN_DOUBT`).
 pub fn check(measured: &[SpinMeasurement], views: &[View]) -> Option<Verdict> {
     if views.len() != 2 {
         return None;
@@ -110,7 +132,7 @@ pub fn check(measured: &[SpinMeasurement], views: &[View]) -> Option<Verdict> {
     let (best, best_sum) = (1..4)
         .map(|h| (h, sums[h]))
         .min_by(|a, b| a.1.total_cmp(&b.1))?;
-    (sums[0] > CLEARLY_BETTER * best_sum).then(|| Verdict {
+    (sums[0] > IN_DOUBT * best_sum).then(|| Verdict {
         reflected: (0..2).filter(|v| best & (1 << v) != 0).collect(),
         misfit_ratio: sums[0] / best_sum.max(f64::MIN_POSITIVE),
     })
@@ -138,6 +160,21 @@ pub fn reflected_views(views: &[View], verdict: &Verdict) -> Vec<View> {
         }
     }
     out
+}
+
+/// Each spin measured as configured widened by its difference from the same phase's spin
+/// measured with the doubted views' markers on the other side (`other`), as one more error
+/// source shared by the four phases: the markers do not settle which it is.
+pub fn widen_by_doubt(measured: &mut [SpinMeasurement], other: &[SpinMeasurement]) {
+    for (m, o) in measured.iter_mut().zip(other) {
+        if let (Some(fit), Some(alt)) = (m.fit.as_mut(), o.fit.as_ref()) {
+            let d = alt.omega - fit.omega;
+            if d.iter().all(|x| x.is_finite()) {
+                fit.cov += d * d.transpose();
+                fit.frame_influence.push((DOUBT_SOURCE, d));
+            }
+        }
+    }
 }
 
 /// The frames' markers as the verdict's reflected views would have lifted them: each one's
@@ -183,12 +220,21 @@ pub fn warning(v: &Verdict, views: &[View]) -> String {
             )
         })
         .collect();
-    format!(
-        "the markers turn as if {} (one rigid turn fits both views' marker tracks {:.1}x better so), and the spins are measured so: if it is, set {}; if not, check the views' maps",
-        seen.join(" and "),
-        v.misfit_ratio,
-        keys.join(" and ")
-    )
+    if v.clear() {
+        format!(
+            "the markers turn as if {} (one rigid turn fits both views' marker tracks {:.1}x better so), and the spins are measured so: if it is, set {}; if not, check the views' maps",
+            seen.join(" and "),
+            v.misfit_ratio,
+            keys.join(" and ")
+        )
+    } else {
+        format!(
+            "the markers cannot tell whether {} (one rigid turn fits both views' marker tracks {:.1}x better so, which does not settle it): each spin's σ includes its difference from the spin measured so; if it is, set {}",
+            seen.join(" and "),
+            v.misfit_ratio,
+            keys.join(" and ")
+        )
+    }
 }
 
 #[cfg(test)]
@@ -269,6 +315,43 @@ mod tests {
                 assert!(verdict.misfit_ratio > CLEARLY_BETTER);
             }
         }
+    }
+
+    /// A doubt widens each spin by its difference from the other way's, as one error source
+    /// the four phases share; a clear verdict is no doubt.
+    #[test]
+    fn a_doubt_widens_each_spin_by_the_other_ways() {
+        use crate::analysis::rotation::SpinFit;
+        let fit = |w: V3| SpinMeasurement {
+            fit: Some(SpinFit {
+                omega: w,
+                cov: nalgebra::Matrix3::identity(),
+                pairs: 0,
+                frame_influence: vec![(0, V3::new(1.0, 0.0, 0.0))],
+            }),
+            ..Default::default()
+        };
+        let mut measured = vec![fit(V3::new(1.0, 2.0, 3.0)), SpinMeasurement::default()];
+        let other = vec![fit(V3::new(1.0, 2.0, -27.0)), fit(V3::zeros())];
+        widen_by_doubt(&mut measured, &other);
+        let widened = measured[0].fit.as_ref().unwrap();
+        assert_eq!(widened.cov[(2, 2)], 1.0 + 900.0);
+        assert_eq!(widened.cov[(0, 0)], 1.0);
+        assert_eq!(
+            widened.frame_influence.last(),
+            Some(&(DOUBT_SOURCE, V3::new(0.0, 0.0, -30.0)))
+        );
+        assert!(measured[1].fit.is_none());
+        let doubt = |r: f64| Verdict {
+            reflected: vec![1],
+            misfit_ratio: r,
+        };
+        assert!(!doubt(1.2).clear() && doubt(2.0).clear());
+        let w = warning(&doubt(1.2), &views(&Config::default_config()));
+        assert!(
+            w.contains("cannot tell") && w.contains("image_mirrored = false"),
+            "{w}"
+        );
     }
 
     /// The views the verdict names see the other hemisphere, and the warning names the key

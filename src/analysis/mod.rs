@@ -219,6 +219,7 @@ pub fn analyze_detailed(
         frames_dropped,
         first_pass_spins: [None; 4],
         settle_handedness: true,
+        handedness_doubt: None,
     };
     // The first pass's report gives the spins that carry its dots round each rim; the
     // geometry's uncertainty (re-running the fits) is added to the final one only.
@@ -231,7 +232,12 @@ pub fn analyze_detailed(
     // agree with the spins; the report keeps the warning.
     let mut views = views;
     let mut handedness_warning = None;
-    if let Some(verdict) = first.1.handedness.take() {
+    let mut handedness_doubt = None;
+    let verdict = first.1.handedness.take();
+    if let Some(verdict) = verdict.as_ref().filter(|v| !v.clear()) {
+        handedness_doubt = Some(verdict.clone());
+    }
+    if let Some(verdict) = verdict.filter(|v| v.clear()) {
         handedness_warning = Some(handedness::warning(&verdict, &views));
         views = handedness::reflected_views(&views, &verdict);
         let mut obs = std::mem::take(&mut first.1.obs);
@@ -274,6 +280,7 @@ pub fn analyze_detailed(
                 first_pass_spins,
                 warnings: warnings.iter().cloned().chain(handedness_warning).collect(),
                 settle_handedness: false,
+                handedness_doubt,
                 ..input()
             },
             obs,
@@ -305,6 +312,9 @@ pub struct Input {
     /// the first pass's. The second pass and the geometry's re-runs keep the views it settled
     /// on (each check is 16 spin fits, for nothing once the views are settled).
     pub settle_handedness: bool,
+    /// Where the first pass's markers could not settle which hemisphere a view sees
+    /// (`handedness`, a doubt): each spin's σ takes in the other way's spin.
+    pub handedness_doubt: Option<handedness::Verdict>,
 }
 
 /// Everything after per-frame measurement: calibration, fits, impact, spins, the report, with

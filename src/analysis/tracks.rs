@@ -151,5 +151,5 @@ pub fn read(
         first_frame_number: None,
         exposure_s: None,
     };
-    Ok((Input { info, warnings: vec!["centres were digitised elsewhere: their uncertainties and the sphere diameters are not known per frame".into()], frames_dropped: 0, first_pass_spins: [None; 4], settle_handedness: false }, obs))
+    Ok((Input { info, warnings: vec!["centres were digitised elsewhere: their uncertainties and the sphere diameters are not known per frame".into()], frames_dropped: 0, first_pass_spins: [None; 4], settle_handedness: false, handedness_doubt: None }, obs))
 }

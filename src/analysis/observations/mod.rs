@@ -249,6 +249,7 @@ pub(super) fn observations_once(
         frames_dropped,
         first_pass_spins,
         settle_handedness,
+        handedness_doubt,
     } = input;
     let set = Setup::of(cfg, info.frame_rate_hz);
     let mut placed = place(obs, views, cfg);
@@ -290,6 +291,7 @@ pub(super) fn observations_once(
         cfg,
         first_pass_spins,
         settle_handedness,
+        handedness_doubt.as_ref(),
         &mut warnings,
     );
     let spin_fits = spins.all_four(&mut warnings);

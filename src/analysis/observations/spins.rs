@@ -28,7 +28,8 @@ pub(super) struct PhaseSpins {
     /// The impulse–spin check of a and b.
     pub(super) checks: [Option<SpinCheck>; 2],
     /// Where the markers turn as if a view's image were mirrored otherwise than the config
-    /// says: which, and how clearly (the spins above are measured so).
+    /// says: which, and how clearly (the spins above are measured so where it is clear, and
+    /// widened by the other way's where it is in doubt).
     pub(super) handedness: Option<handedness::Verdict>,
 }
 
@@ -46,6 +47,7 @@ impl PhaseSpins {
         cfg: &Config,
         first_pass_spins: [Option<V3>; 4],
         settle_handedness: bool,
+        handedness_doubt: Option<&handedness::Verdict>,
         warnings: &mut Vec<String>,
     ) -> PhaseSpins {
         let method = cfg.analysis.rotation;
@@ -62,19 +64,25 @@ impl PhaseSpins {
                 .collect()
         };
         let mut measured = measure(views);
-        let mut verdict = None;
         // A view lifting its markers to the hemisphere it does not see (an image mirrored
         // otherwise than the config says) turns its tracks into the spin's reflection, and the
         // views then disagree about one spin (`handedness`). Where the markers clearly say so,
-        // they are lifted again as they turn, and the report says which key to set. (Settled
-        // once, in the first pass: later runs are given the views it settled on.)
-        let found = settle_handedness
-            .then(|| handedness::check(&measured, views))
-            .flatten();
-        if let Some(v) = found {
-            measured = measure(&handedness::reflected_views(views, &v));
-            warnings.push(handedness::warning(&v, views));
-            verdict = Some(v);
+        // they are lifted again as they turn; where they only lean that way, each spin's σ
+        // takes in the other way's; either way the report says which key would settle it.
+        // (Checked in the first pass: later runs are given its views and its doubt.)
+        let verdict = if settle_handedness {
+            handedness::check(&measured, views)
+        } else {
+            handedness_doubt.cloned()
+        };
+        if let Some(v) = &verdict {
+            let other = measure(&handedness::reflected_views(views, v));
+            if v.clear() {
+                measured = other;
+            } else {
+                handedness::widen_by_doubt(&mut measured, &other);
+            }
+            warnings.push(handedness::warning(v, views));
         }
         // The impulse–spin check (impulse.rs): the velocities' change fixes each sphere's spin
         // change; the spins are checked against it, combined with it, or completed by it.
