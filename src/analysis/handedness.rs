@@ -34,8 +34,9 @@ type V3 = Vector3<f64>;
 /// configured one's misfit was never above 1.03× the best other's (median 0.49×); on the
 /// eight independent renders rightly configured, at most 0.93×; on 21 wrongly configured ones
 /// (the renders with the mirror's default where its image is not mirrored, flipped left to
-/// right, each view upside down), 1.06–36×, the best other being the truth in every one. A marker track mislocated or
-/// wrongly assigned costs every way alike, so a wrong handedness shows as a ratio, not noise.
+/// right, each view upside down), 1.06–36×, the best other being the truth in every one. A
+/// marker track mislocated or wrongly assigned costs every way alike, so a wrong handedness
+/// shows as a ratio, not noise.
 const CLEARLY_BETTER: f64 = 1.5;
 
 /// Below `CLEARLY_BETTER` and above this, the markers cannot tell which way is right: another
