@@ -655,3 +655,107 @@ fn a_camera_that_flips_its_image_is_said_by_image_mirrored_or_found_by_its_marke
     check(&calibrated, &truth, "psi1", 0.05, rig);
     check(&calibrated, &truth, "psi2", 0.05, rig);
 }
+
+/// A camera mounted on its side: a recording of the thesis rig with every frame turned by 90°
+/// (pixel (u, v) to (v, 239 − u): the views side by side, world x down the image's rows), read
+/// as a TIFF stack. With the turned shorthand the analysis measures it as it does upright (e,
+/// ψ1, ψ2 within the goals' bounds of the truth); `calibrate`, started from that shorthand,
+/// finds the 90° roll, keeps the side-by-side regions, and its maps give e within 0.01 and ψ
+/// within 0.05. Before: the mirror's model had x along u whatever the config said, and the
+/// independent renders so turned lost a whole phase's y in one and calibrate's maps failed on
+/// one and gave ψ 0.17–0.24 off on two (docs/accuracy.md, session 47).
+#[test]
+fn a_camera_turned_on_its_side_is_measured_and_calibrated_as_upright() {
+    use tiff::decoder::{Decoder, DecodingResult};
+    use tiff::encoder::{colortype::Gray8, TiffEncoder};
+    let t = tempfile::tempdir().unwrap();
+    let (upright, truth) = run(t.path(), "[sim]\nseed = 31\nlook_family = \"varied\"\n");
+    let session = common::first_session(t.path());
+    let out = common::impactcam(
+        t.path(),
+        &[
+            "export",
+            session.to_str().unwrap(),
+            "--format",
+            "tiff",
+            "up.tif",
+        ],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let (w, h) = (240usize, 192usize);
+    let mut dec = Decoder::new(std::fs::File::open(t.path().join("up.tif")).unwrap()).unwrap();
+    let mut enc =
+        TiffEncoder::new(std::fs::File::create(t.path().join("turned.tif")).unwrap()).unwrap();
+    let mut frames = 0;
+    loop {
+        let DecodingResult::U8(up) = dec.read_image().unwrap() else {
+            panic!("8-bit frames");
+        };
+        assert_eq!(up.len(), w * h);
+        // Turned pixel (u2, v2) is upright pixel (w − 1 − v2, u2).
+        let turned: Vec<u8> = (0..w * h)
+            .map(|i| {
+                let (u2, v2) = (i % h, i / h);
+                up[u2 * w + (w - 1 - v2)]
+            })
+            .collect();
+        enc.write_image::<Gray8>(h as u32, w as u32, &turned)
+            .unwrap();
+        frames += 1;
+        if !dec.more_images() {
+            break;
+        }
+        dec.next_image().unwrap();
+    }
+    assert!(frames > 100, "{frames} frames");
+    // The default rig's shorthand, turned: u2 = v, v2 = 239 − u.
+    let turned_rig = "[camera]\nwidth = 192\nheight = 240\n\
+        [geometry.direct]\nregion = [0, 0, 96, 240]\npx_per_mm = 2.1576\norigin_px = [44.0, 119.5]\n\
+        u_axis = \"-y\"\nv_axis = \"-x\"\n\
+        [geometry.mirror]\nregion = [96, 0, 96, 240]\npx_per_mm = 2.1175\norigin_px = [144.0, 118.0]\n\
+        u_axis = \"+z\"\nv_axis = \"-x\"\n";
+    std::fs::write(t.path().join("turned.toml"), turned_rig).unwrap();
+    let turned = analyze_with(t.path(), Path::new("turned.tif"), "turned.toml", "turned");
+    for (report, rig) in [(&upright, "upright"), (&turned, "turned on its side")] {
+        check(report, &truth, "e", 0.03, rig);
+        check(report, &truth, "psi1", 0.1, rig);
+        check(report, &truth, "psi2", 0.1, rig);
+    }
+    let out = common::impactcam(
+        t.path(),
+        &[
+            "calibrate",
+            "turned.tif",
+            "--config",
+            "turned.toml",
+            "--out",
+            "cal.toml",
+        ],
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let cal = std::fs::read_to_string(t.path().join("cal.toml")).unwrap();
+    assert!(
+        cal.contains("region = [0, 0, 96, 240]") && cal.contains("region = [96, 0, 96, 240]"),
+        "the side-by-side regions kept:\n{cal}"
+    );
+    let roll: f64 = cal
+        .split("roll ")
+        .nth(1)
+        .and_then(|r| r.split_whitespace().next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or(f64::NAN);
+    assert!(
+        (roll - 90.0).abs() < 1.0,
+        "the direct view's roll {roll}:\n{cal}"
+    );
+    std::fs::write(
+        t.path().join("calibrated.toml"),
+        format!("[camera]\nwidth = 192\nheight = 240\n{cal}"),
+    )
+    .unwrap();
+    let calibrated = analyze_with(t.path(), Path::new("turned.tif"), "calibrated.toml", "cal");
+    let rig = "turned on its side, calibrated";
+    check(&calibrated, &truth, "e", 0.01, rig);
+    check(&calibrated, &truth, "psi1", 0.05, rig);
+    check(&calibrated, &truth, "psi2", 0.05, rig);
+}

@@ -298,8 +298,10 @@ impl View {
     /// origin moved by b along the image of world x. Not for a pinhole view (returns false).
     pub fn rescale(&mut self, a: f64, b: f64) -> bool {
         if self.aligned {
-            let sign = self.u_axis.x.signum();
-            self.origin_px[0] += sign * b * self.px_per_mm;
+            // Along whichever image axis shows x: u, or v on a camera turned on its side.
+            let k = usize::from(self.v_axis.x.abs() > self.u_axis.x.abs());
+            let sign = [self.u_axis, self.v_axis][k].x.signum();
+            self.origin_px[k] += sign * b * self.px_per_mm;
             self.px_per_mm *= a;
             self.map = Map::Affine {
                 m: Matrix2x3::from_rows(&[
@@ -562,6 +564,20 @@ mod tests {
         let scaled = (p - V3::x() * 0.3) / 1.01;
         let q = r.solve(view.project(&p), Some(&scaled));
         assert!((q - scaled).norm() < 1e-12, "{q} vs {scaled}");
+        // The same for the shorthand, x along u (the thesis's mirror) and along v (a camera
+        // turned on its side): the origin moves along the image of x, whichever axis that is
+        // (it moved along u, which there images z).
+        for keys in [
+            "px_per_mm=2.1175\norigin_px=[121.0,144.0]\nu_axis=\"+x\"\nv_axis=\"+z\"",
+            "px_per_mm=2.1175\norigin_px=[144.0,121.0]\nu_axis=\"+z\"\nv_axis=\"-x\"",
+        ] {
+            let view = config_view(ViewKind::Mirror, keys);
+            assert!(view.aligned, "{keys}");
+            let mut r = view.clone();
+            assert!(r.rescale(1.01, 0.3));
+            let q = r.solve(view.project(&p), Some(&scaled));
+            assert!((q - scaled).norm() < 1e-12, "{keys}: {q} vs {scaled}");
+        }
     }
 
     /// A view with a lens records each world point where the lens moves the map's image of it,

@@ -3,7 +3,7 @@
 //! Levenberg–Marquardt with weak priors on what the flights cannot tell apart, outliers left out.
 
 use super::maps::{direct_matrix, facing_of, mirror_matrix, x_sign};
-use super::provisional::z_sign;
+use super::provisional::MirrorAxes;
 use super::{Fitted, MirrorFit};
 use crate::analysis::calibration::fit_line;
 use crate::analysis::geometry::{View, ViewKind, V3};
@@ -76,10 +76,11 @@ impl LensFrame {
 
 /// Both views fitted together (a small bundle adjustment): every flight is a ballistic
 /// trajectory with g known (x, z straight lines, y a parabola), seen by the direct view through
-/// (s_d, φ_d) and by the mirror through its scale, its turn about x, y and z, and o_u; both
-/// through one lens of radial distortion k1 (held at 0 unless `lens` is given, and at
-/// `lens_k1_held` where that is given: a dot grid's). Held: the direct
-/// view's origin and the mirror's v offset (the world origin, a choice), the mirror's flips.
+/// (s_d, φ_d) and by the mirror through its scale, its turn about x, y and z, and its offset
+/// along its image of x (u, or v on a camera turned on its side); both through one lens of
+/// radial distortion k1 (held at 0 unless `lens` is given, and at `lens_k1_held` where that is
+/// given: a dot grid's). Held: the direct view's origin and the mirror's offset along its image
+/// of z (the world origin, a choice), the mirror's flips.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fit_bundle(
     obs: &[FrameObs],
@@ -134,10 +135,18 @@ pub(super) fn fit_bundle(
             flights.len()
         ));
     }
-    let (f, ov) = provisional_mirror
-        .map(|v| (z_sign(v), v.origin_px[1]))
-        .unwrap_or((1.0, 0.0));
-    // Parameters: s_d, φ_d, s_m, the mirror's turn about x, y, z, o_u, the direct and the
+    // How the mirror images x and z (the thesis's way, or turned on its side), and its offset
+    // along the image axis of z, held (the world origin's z, a choice).
+    let axes = provisional_mirror
+        .map(MirrorAxes::of)
+        .unwrap_or(MirrorAxes {
+            x_along: 0,
+            sx: 1.0,
+            f: 1.0,
+        });
+    let (kx, kz, f) = (axes.x_along, 1 - axes.x_along, axes.f);
+    let ov = provisional_mirror.map_or(0.0, |v| v.origin_px[kz]);
+    // Parameters: s_d, φ_d, s_m, the mirror's turn about x, y, z, its offset along x, the direct and the
     // mirror camera's inverse distance κ (1/mm; 0 is orthographic), the lens's k1, then
     // (x0, vx, y0, vy, z0, vz) per flight.
     let nv = 10;
@@ -151,7 +160,7 @@ pub(super) fn fit_bundle(
     th[1] = start.1;
     if let Some(v) = provisional_mirror {
         th[2] = v.px_per_mm;
-        th[6] = v.origin_px[0];
+        th[6] = v.origin_px[kx];
     }
     let slot = |k: usize| flights.iter().position(|&x| x == k).unwrap_or(0);
     // Starting trajectories: the direct view inverted with the starting map; z from the
@@ -190,24 +199,20 @@ pub(super) fn fit_bundle(
         let zs: Vec<(f64, f64)> = pts
             .iter()
             .filter(|p| p.flight == k && p.view == 1)
-            .map(|p| (p.dt, f * (p.q[1] - ov) / th[2].max(1e-9)))
+            .map(|p| (p.dt, f * (p.q[kz] - ov) / th[2].max(1e-9)))
             .collect();
         let (z0, vz) = line(&zs);
         for (c, v) in [x0, vx, y0, vy, z0, vz].into_iter().enumerate() {
             th[nv + 6 * j + c] = v;
         }
     }
-    // x runs the same way in the mirror as in the direct view unless the mirror's u falls with it.
-    let sx = provisional_mirror
-        .map(|v| if v.u_axis.x < 0.0 { -1.0 } else { 1.0 })
-        .unwrap_or(1.0);
     // Points left out as outliers (a frame still in contact, a sphere still in its tube at
     // a flight's end) weigh 0.
     let weights = std::cell::RefCell::new(vec![1.0; pts.len()]);
     let residuals = |th: &DVector<f64>| -> DVector<f64> {
         let weights = weights.borrow();
         let md = direct_matrix(th[0], th[1], sd);
-        let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], sx, f);
+        let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], axes);
         let (fd, fm) = (
             facing_of(&md, ViewKind::Direct),
             facing_of(&mm, ViewKind::Mirror),
@@ -230,7 +235,9 @@ pub(super) fn fit_bundle(
             let (m, o, facing, kappa) = if p.view == 0 {
                 (&md, origin_direct, fd, th[7])
             } else {
-                (&mm, [th[6], ov], fm, th[8])
+                let mut o = [0.0; 2];
+                (o[kx], o[kz]) = (th[6], ov);
+                (&mm, o, fm, th[8])
             };
             let k = 1.0 / (1.0 - kappa * facing.dot(&V3::from(w)));
             let ideal =
@@ -374,7 +381,7 @@ pub(super) fn fit_bundle(
     };
     let mean_depth = |view: usize| {
         let md = direct_matrix(th[0], th[1], sd);
-        let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], sx, f);
+        let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], axes);
         let facing = if view == 0 {
             facing_of(&md, ViewKind::Direct)
         } else {
@@ -415,8 +422,9 @@ pub(super) fn fit_bundle(
             tilt_deg: fitted(3, deg),
             roll_deg: fitted(4, deg),
             yaw_deg: fitted(5, deg),
-            origin_u_px: fitted(6, 1.0),
-            x_reversed: sx < 0.0,
+            origin_x_px: fitted(6, 1.0),
+            x_along_v: kx == 1,
+            x_reversed: axes.sx < 0.0,
             residual_rms_px: rms(1),
             points: mirror_points,
             camera_distance_mm: None,
@@ -538,7 +546,7 @@ mod tests {
             };
             let (od, om) = ([119.5, 44.0], [121.0, 144.0]);
             let md = direct_matrix(2.1576, roll_d, 1.0);
-            let mm = mirror_matrix(2.1175, turn_m, 1.0, 1.0);
+            let mm = mirror_matrix(2.1175, turn_m, MirrorAxes::THESIS);
             let direct = View::from_config(
                 ViewKind::Direct,
                 &view_geometry([0, 0, 240, 96], md, od, ViewKind::Direct, k),
@@ -575,7 +583,7 @@ mod tests {
             within("mirror tilt", m.tilt_deg, deg(turn_m[0]));
             within("mirror roll", m.roll_deg, deg(turn_m[1]));
             within("mirror yaw", m.yaw_deg, deg(turn_m[2]));
-            within("mirror origin u", m.origin_u_px, om[0]);
+            within("mirror origin u", m.origin_x_px, om[0]);
             within("direct 1/distance", b.kappa[0], k.value);
             within("mirror 1/distance", b.kappa[1], k.value);
             assert_eq!(
@@ -585,6 +593,70 @@ mod tests {
             );
             assert!(m.residual_rms_px < 0.03, "{}", m.residual_rms_px);
         }
+    }
+
+    /// The same rig from a camera turned on its side (the views side by side): the direct
+    /// view's gravity along +u (a roll of 90°, found from the flights as any roll is), the
+    /// mirror's x along v and z along u, its offset along v fitted and along u held. Before,
+    /// the mirror's model had x along u whatever the config said; on the independent renders so
+    /// turned calibrate gave no maps for one and ψ 0.17–0.24 off on two (docs/accuracy.md,
+    /// session 47).
+    #[test]
+    fn the_bundle_finds_a_rig_turned_on_its_side() {
+        let roll_d = 91.2f64.to_radians();
+        let turn_m = [2.0f64, -0.8, 0.6].map(f64::to_radians);
+        let axes = MirrorAxes {
+            x_along: 1,
+            sx: -1.0,
+            f: 1.0,
+        };
+        let none = Fitted {
+            value: 0.0,
+            sigma: 0.0,
+        };
+        let (od, om) = ([44.0, 119.5], [144.0, 121.0]);
+        let md = direct_matrix(2.1576, roll_d, 1.0);
+        let mm = mirror_matrix(2.1175, turn_m, axes);
+        let direct = View::from_config(
+            ViewKind::Direct,
+            &view_geometry([0, 0, 96, 240], md, od, ViewKind::Direct, none),
+        );
+        let mirror = View::from_config(
+            ViewKind::Mirror,
+            &view_geometry([96, 0, 96, 240], mm, om, ViewKind::Mirror, none),
+        );
+        let (obs, phases) = flights_through([&direct, &mirror], 0.02, 7);
+        // Started from the shorthand an experimenter would type for the turned rig.
+        let provisional = View::from_config(
+            ViewKind::Mirror,
+            &ViewGeometry::shorthand([96, 0, 96, 240], 2.08, om, "+z", "-x"),
+        );
+        assert_eq!(MirrorAxes::of(&provisional), axes);
+        let b = fit_bundle(
+            &obs,
+            &phases,
+            G,
+            0,
+            Some(1),
+            od,
+            (2.11, 90f64.to_radians()),
+            Some(&provisional),
+            None,
+            None,
+            &[direct.clone(), mirror.clone()],
+        )
+        .unwrap();
+        let m = b.mirror.unwrap();
+        let deg = |x: f64| x.to_degrees();
+        within("direct scale", b.direct_scale, 2.1576);
+        within("direct roll", b.direct_roll, deg(roll_d));
+        within("mirror scale", m.scale, 2.1175);
+        within("mirror tilt", m.tilt_deg, deg(turn_m[0]));
+        within("mirror roll", m.roll_deg, deg(turn_m[1]));
+        within("mirror yaw", m.yaw_deg, deg(turn_m[2]));
+        within("mirror origin v", m.origin_x_px, om[1]);
+        assert!(m.x_along_v && m.x_reversed);
+        assert!(m.residual_rms_px < 0.03, "{}", m.residual_rms_px);
     }
 
     /// Where the spheres flew in depth, as the fit says: the mean of the fitted centres'
@@ -607,7 +679,7 @@ mod tests {
                 kappa,
             ),
         );
-        let mm = mirror_matrix(2.1175, [0.0; 3], 1.0, 1.0);
+        let mm = mirror_matrix(2.1175, [0.0; 3], MirrorAxes::THESIS);
         let mirror = View::from_config(
             ViewKind::Mirror,
             &view_geometry([0, 96, 240, 96], mm, om, ViewKind::Mirror, kappa),
@@ -678,7 +750,7 @@ mod tests {
                 ViewKind::Mirror,
                 &view_geometry(
                     [0, 96, 240, 96],
-                    mirror_matrix(2.1175, [0.02, 0.0, 0.0], 1.0, 1.0),
+                    mirror_matrix(2.1175, [0.02, 0.0, 0.0], MirrorAxes::THESIS),
                     om,
                     ViewKind::Mirror,
                     zero,

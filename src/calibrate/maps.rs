@@ -2,6 +2,7 @@
 //! mirror by its scale and its turns about x, y and z, each by its camera's inverse distance —
 //! and back to the config's `[geometry]` (a matrix, or a projection where perspective was found).
 
+use super::provisional::MirrorAxes;
 use super::Fitted;
 use crate::analysis::geometry::{ViewKind, V3};
 use crate::config::ViewGeometry;
@@ -30,11 +31,15 @@ pub(super) fn x_sign(view: &crate::analysis::geometry::View) -> f64 {
     }
 }
 
-/// M = s·N·Qᵀ: the nominal mirror rows N = [[sx, 0, 0], [0, 0, f]] (u along ±x, v along ±z)
-/// with the view turned by Q, the rotation by `turn` rad about world (x, y, z).
-pub(super) fn mirror_matrix(s: f64, turn: [f64; 3], sx: f64, f: f64) -> [[f64; 3]; 2] {
+/// M = s·N·Qᵀ: the nominal mirror rows N (x along one image axis with sign `sx`, z along the
+/// other with sign `f`: u along ±x and v along ±z on the thesis's rig, the other way round on
+/// a camera turned on its side) with the view turned by Q, the rotation by `turn` rad about
+/// world (x, y, z).
+pub(super) fn mirror_matrix(s: f64, turn: [f64; 3], axes: MirrorAxes) -> [[f64; 3]; 2] {
     let q = nalgebra::Rotation3::from_scaled_axis(V3::from(turn));
-    let n = [V3::new(sx, 0.0, 0.0), V3::new(0.0, 0.0, f)];
+    let mut n = [V3::zeros(); 2];
+    n[axes.x_along] = V3::new(axes.sx, 0.0, 0.0);
+    n[1 - axes.x_along] = V3::new(0.0, 0.0, axes.f);
     n.map(|r| {
         let t = q * r;
         [s * t.x, s * t.y, s * t.z]

@@ -35,7 +35,7 @@ use crate::config::Config;
 use bundle::{fit_bundle, LensFrame};
 use flights::{diameter_scale, flights, parabola_acceleration};
 use maps::{direct_matrix, distance, mirror_matrix, view_geometry, x_sign};
-use provisional::{align_mirror, line_fit, local_scale, set_scale, z_sign};
+use provisional::{align_mirror, line_fit, local_scale, set_scale, x_index, MirrorAxes};
 
 /// A fitted parameter and its standard deviation.
 #[derive(Clone, Copy, Debug)]
@@ -76,8 +76,11 @@ pub struct MirrorFit {
     pub tilt_deg: Fitted,
     /// The mirror view turned about world z, deg: its u takes in world y.
     pub yaw_deg: Fitted,
-    /// Image u of the world origin, px.
-    pub origin_u_px: Fitted,
+    /// The world origin's image coordinate along the mirror's image of x (u; v where
+    /// `x_along_v`), px.
+    pub origin_x_px: Fitted,
+    /// Whether the mirror images world x along v (a camera turned on its side), not u.
+    pub x_along_v: bool,
     /// Whether the mirror shows world x reversed (u decreasing with x).
     pub x_reversed: bool,
     pub residual_rms_px: f64,
@@ -311,29 +314,29 @@ pub fn calibrate(
             source_name: name.clone(),
             cause,
         })?;
-    let kinds: Vec<ViewKind> = analysis::geometry::views(cfg)
-        .iter()
-        .map(|v| v.kind)
-        .collect();
+    let config_views = analysis::geometry::views(cfg);
+    let kinds: Vec<ViewKind> = config_views.iter().map(|v| v.kind).collect();
     let di = kinds
         .iter()
         .position(|k| *k == ViewKind::Direct)
         .ok_or_else(|| data("no direct view".into()))?;
     let mi = kinds.iter().position(|k| *k == ViewKind::Mirror);
     // The mirror's x against the direct view's: where each view shows the same number of
-    // blobs (one or two), paired in order of u; u_mirror = a·u_direct + b gives the mirror's
-    // scale along x (and whether it reverses x) and the u offset that makes the two x agree, so
+    // blobs (one or two), paired in order of each view's image coordinate along x (u, or v on
+    // a camera turned on its side: `x_index`); c_mirror = a·c_direct + b gives the mirror's
+    // scale along x (and whether it reverses x) and the offset that makes the two x agree, so
     // that the spheres are labelled alike in both views.
     let mirror_line = mi.and_then(|mi| {
+        let (kd, km) = (x_index(&config_views[di]), x_index(&config_views[mi]));
         let mut pairs = Vec::new();
         for f in &survey {
             let (mut d, mut m) = (f[di].clone(), f[mi].clone());
             if d.len() != m.len() || d.is_empty() || d.len() > 2 {
                 continue;
             }
-            d.sort_by(|p, q| p.0[0].total_cmp(&q.0[0]));
-            m.sort_by(|p, q| p.0[0].total_cmp(&q.0[0]));
-            pairs.extend(d.iter().zip(&m).map(|(p, q)| (p.0[0], q.0[0])));
+            d.sort_by(|p, q| p.0[kd].total_cmp(&q.0[kd]));
+            m.sort_by(|p, q| p.0[km].total_cmp(&q.0[km]));
+            pairs.extend(d.iter().zip(&m).map(|(p, q)| (p.0[kd], q.0[km])));
         }
         line_fit(&pairs)
     });
@@ -575,15 +578,17 @@ pub fn calibrate(
             .as_ref()
             .map(|m| m.region)
             .unwrap_or(views[mi].region);
-        let f = z_sign(&views[mi]);
-        let sx = if fit.x_reversed { -1.0 } else { 1.0 };
+        let axes = MirrorAxes {
+            sx: if fit.x_reversed { -1.0 } else { 1.0 },
+            ..MirrorAxes::of(&views[mi])
+        };
         let m = mirror_matrix(
             fit.scale.value,
             [fit.tilt_deg.value, fit.roll_deg.value, fit.yaw_deg.value].map(f64::to_radians),
-            sx,
-            f,
+            axes,
         );
-        let origin = [fit.origin_u_px.value, views[mi].origin_px[1]];
+        let mut origin = views[mi].origin_px;
+        origin[axes.x_along] = fit.origin_x_px.value;
         let mut mirror_geometry =
             view_geometry(region, m, origin, ViewKind::Mirror, bundle.kappa[1]);
         mirror_geometry.px_per_mm_uncertainty_percent =

@@ -49,7 +49,7 @@ impl Calibrated {
             out += &format!("#   mirror camera: {}\n", persp(&m.camera_distance_mm));
             out += &format!(
                 "# mirror: scale {} (diameter: {}); turned about x (tilt, twice the mirror's from 45°)\n\
-                 #   {}, about y (roll) {}, about z (yaw) {}; x {}; origin u {};\n\
+                 #   {}, about y (roll) {}, about z (yaw) {}; x {}; origin {} {};\n\
                  #   residuals {:.3} px RMS over {} centres\n",
                 p(&m.scale, "px/mm", 4),
                 p(&m.scale_from_diameter, "px/mm", 4),
@@ -57,7 +57,8 @@ impl Calibrated {
                 p(&m.roll_deg, "deg", 3),
                 p(&m.yaw_deg, "deg", 3),
                 if m.x_reversed { "reversed" } else { "not reversed" },
-                p(&m.origin_u_px, "px", 2),
+                if m.x_along_v { "v" } else { "u" },
+                p(&m.origin_x_px, "px", 2),
                 m.residual_rms_px,
                 m.points
             );

@@ -3,9 +3,9 @@
 //! The whole frame is surveyed as one view (backdrop removed, so tube ends and the mirror's
 //! frame drop out) and the spheres' blobs are collected over the recording. The edge runs
 //! between two groups of blobs, across rows or across columns, that no blob straddles; of the
-//! candidate gaps, the one whose two sides show the same x (the spheres' u on one side a
-//! straight-line function of their u on the other, as a mirror view shows them) in the most
-//! frames is the mirror's edge. Within that gap, the edge is where the still background steps
+//! candidate gaps, the one whose two sides show the same x (the spheres' coordinate along the
+//! edge on one side a straight-line function of theirs on the other, as a mirror view shows
+//! them) in the most frames is the mirror's edge. Within that gap, the edge is where the still background steps
 //! (a mirror reflects less than all of the light, and its frame shows); where nothing steps, at
 //! the gap's end on the side whose spheres are cut off there (the direct view's when none are).
 //!
@@ -23,8 +23,8 @@ use crate::config::Config;
 const SURVEY_FRAMES: usize = 80;
 /// Each side of the edge must hold at least this share of the blobs.
 const MIN_SIDE_SHARE: f64 = 0.15;
-/// The two sides' u must follow a straight line this closely (r²) to be taken for two views of
-/// the same spheres.
+/// The two sides' coordinates along the edge must follow a straight line this closely (r²) to be
+/// taken for two views of the same spheres.
 const MIN_SHARED_R2: f64 = 0.9;
 /// Rows (or columns) averaged on each side of a candidate edge for the background's level.
 const LEVEL_ROWS: usize = 4;
@@ -360,8 +360,10 @@ fn split_at(
 ) -> Option<FoundSplit> {
     let k = usize::from(across_rows);
     let mid = 0.5 * f64::from(gap.0 + gap.1) - 0.5;
-    // The two sides' u, paired in order of u in frames where both show the same one or two
-    // spheres.
+    // The two sides' coordinate along the edge (u for views above each other, v side by side:
+    // a camera turned on its side images x down its rows), paired in order of it in frames
+    // where both show the same one or two spheres.
+    let along = 1 - k;
     let mut pairs: Vec<(f64, f64)> = Vec::new();
     let mut frames = 0;
     for f in blobs {
@@ -369,12 +371,12 @@ fn split_at(
         if a.len() != b.len() || a.is_empty() || a.len() > 2 {
             continue;
         }
-        a.sort_by(|p, q| p.centroid[0].total_cmp(&q.centroid[0]));
-        b.sort_by(|p, q| p.centroid[0].total_cmp(&q.centroid[0]));
+        a.sort_by(|p, q| p.centroid[along].total_cmp(&q.centroid[along]));
+        b.sort_by(|p, q| p.centroid[along].total_cmp(&q.centroid[along]));
         pairs.extend(
             a.iter()
                 .zip(&b)
-                .map(|(p, q)| (p.centroid[0], q.centroid[0])),
+                .map(|(p, q)| (p.centroid[along], q.centroid[along])),
         );
         frames += 1;
     }
@@ -532,6 +534,35 @@ mod tests {
         assert_eq!(s.cut_side, Some(Side::After));
         // The cut blobs' tops at 131 − 2 = 129 (less the slack).
         assert_eq!(s.edge_px, 129, "{s:?}");
+    }
+
+    /// The same two views from a camera turned on its side: side by side, the edge a column,
+    /// x down the rows. The sides pair by their coordinate along the edge (v here); paired by u,
+    /// across it, as before, they did not follow one line and no edge was found.
+    #[test]
+    fn side_by_side_views_pair_along_their_edge() {
+        let turned: Vec<Vec<Blob>> = two_views(96.0)
+            .iter()
+            .map(|f| {
+                f.iter()
+                    .map(|b| disc(b.centroid[1], b.centroid[0], 14.0))
+                    .collect()
+            })
+            .collect();
+        let gaps = gaps(&turned, false, 240);
+        assert_eq!(gaps.len(), 1, "{gaps:?}");
+        let profile: Vec<f64> = (1..240)
+            .map(|u| {
+                if u == 96 {
+                    -3.0
+                } else {
+                    0.1 * ((u * 7 % 5) as f64 - 2.0)
+                }
+            })
+            .collect();
+        let s = split_at(&turned, false, gaps[0], &profile, Side::Before).unwrap();
+        assert_eq!(s.edge_px, 96);
+        assert_eq!(s.regions(192, 240), ([0, 0, 96, 240], [96, 0, 96, 240]));
     }
 
     #[test]

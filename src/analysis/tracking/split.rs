@@ -251,15 +251,19 @@ impl Tracker {
 }
 
 /// Starts for the two discs of `view`'s one silhouette from the world x the other view measured:
-/// each disc's u where its x images in this view, and its v the middle of the silhouette's run
-/// down the columns on its far side from the other disc (0.3–0.75 radii out), which the other
-/// disc does not reach while they are at least 0.7 radii apart (`profile_fit_behind` needs
-/// three quarters). Each column's run is where it is brighter than halfway between
-/// the background and its own brightest pixel, so a lamp's shading or a highlight moves it
-/// little. None where the discs are less than 0.7 radii apart across (their columns shared: on
-/// a hw-sim rig such starts gave crescents 2.5–8 px off), or a disc has fewer than two such
-/// columns whose run is at least a radius long.
-fn starts_from_x(
+/// each disc's place along x where its x images in this view, and across x the middle of the
+/// silhouette's run over the lines on its far side from the other disc (0.3–0.75 radii out),
+/// which the other disc does not reach while they are at least 0.7 radii apart
+/// (`profile_fit_behind` needs three quarters). The lines are the image's columns where x
+/// images nearer u, its rows where nearer v (a camera mounted on its side, or views side by
+/// side: read down the columns, such a view's discs were never apart across them, and an
+/// independent render turned by 90° lost the direct view's y for the whole phase after its
+/// impact). Each line's run is where it is brighter than halfway between the background and its
+/// own brightest pixel, so a lamp's shading or a highlight moves it little. None where the discs
+/// are less than 0.7 radii apart along that axis (their lines shared: on a hw-sim rig such
+/// starts gave crescents 2.5–8 px off), or a disc has fewer than two such lines whose run is at
+/// least a radius long.
+pub(super) fn starts_from_x(
     img: &GreyImage,
     view: &View,
     blob: &Blob,
@@ -274,46 +278,66 @@ fn starts_from_x(
         view.project(&p)
     };
     let centres = [at_x(x_mm[0]), at_x(x_mm[1])];
-    // Discs less than 0.7 radii apart across share their columns: no far side to read.
-    if (centres[0][0] - centres[1][0]).abs() < 0.7 * radius_px[0].max(radius_px[1]) {
+    // The image axis x runs nearer (`along`: 0 for u, 1 for v); the lines run across it.
+    let gap = [0, 1].map(|k| centres[1][k] - centres[0][k]);
+    let along = if gap[0].abs() >= gap[1].abs() { 0 } else { 1 };
+    let across = 1 - along;
+    let size = [img.width, img.height];
+    // Discs less than 0.7 radii apart along it share their lines: no far side to read.
+    if gap[along].abs() < 0.7 * radius_px[0].max(radius_px[1]) {
         return None;
     }
-    let [_, v_top, _, v_bottom] = blob.extent_px;
-    let rows = v_top.saturating_sub(2)..(v_bottom + 3).min(img.height);
-    let v_of = |s: usize| -> Option<f64> {
-        let (u_s, r) = (centres[s][0], radius_px[s]);
-        let away = if u_s < centres[1 - s][0] { -1.0 } else { 1.0 };
+    // `extent_px` is [u0, v0, u1, v1].
+    let (first_px, last_px) = (blob.extent_px[across], blob.extent_px[across + 2]);
+    let span = first_px.saturating_sub(2)..(last_px + 3).min(size[across]);
+    // The pixel at `a` along and `c` across.
+    let pixel = |a: usize, c: usize| {
+        if along == 0 {
+            img.at(a, c)
+        } else {
+            img.at(c, a)
+        }
+    };
+    let mid_of = |s: usize| -> Option<f64> {
+        let (a_s, r) = (centres[s][along], radius_px[s]);
+        let away = if a_s < centres[1 - s][along] {
+            -1.0
+        } else {
+            1.0
+        };
         let mut mids: Vec<f64> = Vec::new();
         for k in 1..=4 {
-            let u = (u_s + away * r * (0.15 + 0.15 * k as f64)).round();
-            if u < 0.0 || u >= img.width as f64 || !view.contains(u, blob.centroid[1]) {
+            let a = (a_s + away * r * (0.15 + 0.15 * k as f64)).round();
+            let mut probe = blob.centroid;
+            probe[along] = a;
+            if a < 0.0 || a >= size[along] as f64 || !view.contains(probe[0], probe[1]) {
                 continue;
             }
-            let col: Vec<(usize, f64)> = rows
+            let line: Vec<(usize, f64)> = span
                 .clone()
-                .map(|v| (v, img.at(u as usize, v) as f64))
+                .map(|c| (c, pixel(a as usize, c) as f64))
                 .collect();
-            let top = col.iter().map(|c| c.1).fold(f64::MIN, f64::max);
+            let top = line.iter().map(|c| c.1).fold(f64::MIN, f64::max);
             let level = lv.background + 0.5 * (top - lv.background);
             if top <= lv.background + 3.0 * lv.noise_sigma {
                 continue;
             }
             // The run's ends, each interpolated between the pixels either side of `level`.
-            let first = col.iter().position(|c| c.1 >= level)?;
-            let last = col.len() - 1 - col.iter().rev().position(|c| c.1 >= level)?;
+            let first = line.iter().position(|c| c.1 >= level)?;
+            let last = line.len() - 1 - line.iter().rev().position(|c| c.1 >= level)?;
             let cross = |i: usize, j: usize| {
-                let (a, b) = (col[i], col[j]);
+                let (a, b) = (line[i], line[j]);
                 a.0 as f64 + (level - a.1) / (b.1 - a.1) * (b.0 as f64 - a.0 as f64)
             };
             let start = if first > 0 {
                 cross(first - 1, first)
             } else {
-                col[0].0 as f64
+                line[0].0 as f64
             };
-            let end = if last + 1 < col.len() {
+            let end = if last + 1 < line.len() {
                 cross(last, last + 1)
             } else {
-                col[last].0 as f64
+                line[last].0 as f64
             };
             if end - start >= r {
                 mids.push(0.5 * (start + end));
@@ -325,11 +349,13 @@ fn starts_from_x(
         mids.sort_by(f64::total_cmp);
         Some(0.5 * (mids[(mids.len() - 1) / 2] + mids[mids.len() / 2]))
     };
-    let (va, vb) = (v_of(0)?, v_of(1)?);
-    Some([
-        CircleFit::start_at([centres[0][0], va], radius_px[0]),
-        CircleFit::start_at([centres[1][0], vb], radius_px[1]),
-    ])
+    let at = |s: usize, mid: f64| {
+        let mut c = centres[s];
+        c[across] = mid;
+        CircleFit::start_at(c, radius_px[s])
+    };
+    let (mid_a, mid_b) = (mid_of(0)?, mid_of(1)?);
+    Some([at(0, mid_a), at(1, mid_b)])
 }
 
 /// Each sphere's depth along `view`'s line of sight as view `oi` measured it in this frame,
