@@ -31,6 +31,13 @@ fn cross_matrix(v: V3) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
 }
 
+/// Δω = (1/(K r)) n × Δv, rad/s, for a sphere of radius `radius_mm` whose velocity changed by
+/// `dv` at the contact normal `n_for_sphere` from it towards the other (one formula for the
+/// check and for `kinematics::ImpulseCoupling`, so that both give the same bits).
+pub fn delta_omega(n_for_sphere: V3, dv: V3, radius_mm: f64, k: f64) -> V3 {
+    n_for_sphere.cross(&dv) * (1.0 / (k * radius_mm))
+}
+
 /// The impulse's Δω, Δω = (1/(K r)) n × Δv, for a sphere of radius `radius_mm` whose velocity
 /// changed by `dv` (per-axis σ `dv_sigma`); `n_for_sphere` is the contact normal from this
 /// sphere towards the other (n for a, −n for b), with per-axis σ `n_sigma`.
@@ -48,7 +55,7 @@ pub fn predicted(
     let nx = cross_matrix(n_for_sphere);
     let dvx = cross_matrix(dv);
     Impulse {
-        delta_omega: n_for_sphere.cross(&dv) * scale,
+        delta_omega: delta_omega(n_for_sphere, dv, radius_mm, k),
         cov: (nx * c_dv * nx.transpose() + dvx * c_n * dvx.transpose()) * (scale * scale),
     }
 }
@@ -124,12 +131,44 @@ fn mapped(f: &SpinFit, m: &Matrix3<f64>) -> Vec<(usize, V3)> {
 
 /// Reconciles one sphere's pre- and post-impact spin fits with its impulse. Returns the new
 /// pair, the check for the report, and a warning where there is one.
+#[cfg(test)]
 pub fn reconcile(
     sphere: usize,
     pre: Option<&SpinFit>,
     post: Option<&SpinFit>,
     impulse: &Impulse,
 ) -> (Option<SpinFit>, Option<SpinFit>, SpinCheck, Option<String>) {
+    let (pre, post, check, warning, _) = reconcile_weighted(sphere, pre, post, impulse);
+    (pre, post, check, warning)
+}
+
+/// The weight of the impulse's Δω in the spins `reconcile` returns (before, after): I for a
+/// spin after taken from the one before plus Δω, −I for one before from the one after less Δω,
+/// the combination's weight where both were measured, zero where Δω was not used
+/// (`kinematics::ImpulseCoupling`).
+pub type ImpulseWeights = [Matrix3<f64>; 2];
+
+/// Whether a frame index of a spin's influences is one of the impulse's own error terms (its
+/// Δω's covariance, `synthetic_frame` columns 0–2), which `kinematics::ImpulseCoupling`
+/// carries through the velocities and the normal instead.
+pub fn is_impulse_term(frame: usize, sphere: usize) -> bool {
+    (0..3).any(|column| frame == synthetic_frame(sphere, column))
+}
+
+/// `reconcile`, with the weight the impulse's Δω has in each spin returned.
+pub fn reconcile_weighted(
+    sphere: usize,
+    pre: Option<&SpinFit>,
+    post: Option<&SpinFit>,
+    impulse: &Impulse,
+) -> (
+    Option<SpinFit>,
+    Option<SpinFit>,
+    SpinCheck,
+    Option<String>,
+    ImpulseWeights,
+) {
+    let none = [Matrix3::zeros(); 2];
     let name = ["a", "b"][sphere];
     let extra: Vec<(usize, V3)> = factor(&impulse.cov)
         .iter()
@@ -201,10 +240,22 @@ pub fn reconcile(
             let diagonal = |c: &Matrix3<f64>| Matrix3::from_diagonal(&c.diagonal());
             let combined = diagonal(&c1).try_inverse().zip(diagonal(&c2).try_inverse());
             let Some((w1, w2)) = combined else {
-                return (Some(widen(pre, 3)), Some(widen(post, 4)), check, warning);
+                return (
+                    Some(widen(pre, 3)),
+                    Some(widen(post, 4)),
+                    check,
+                    warning,
+                    none,
+                );
             };
             let Some(sum_inv) = (w1 + w2).try_inverse() else {
-                return (Some(widen(pre, 3)), Some(widen(post, 4)), check, warning);
+                return (
+                    Some(widen(pre, 3)),
+                    Some(widen(post, 4)),
+                    check,
+                    warning,
+                    none,
+                );
             };
             let a = sum_inv * w1;
             let b = Matrix3::identity() - a;
@@ -225,7 +276,13 @@ pub fn reconcile(
                 pairs: post.pairs,
                 frame_influence: influence,
             };
-            (Some(widen(pre, 3)), Some(widen(post, 4)), check, warning)
+            (
+                Some(widen(pre, 3)),
+                Some(widen(post, 4)),
+                check,
+                warning,
+                [Matrix3::zeros(), b],
+            )
         }
         (Some(pre), None) => {
             let mut influence = pre.frame_influence.clone();
@@ -240,7 +297,13 @@ pub fn reconcile(
             let warning = format!(
                 "sphere {name}: too few markers tracked after the impact (none, or under two tracks' worth); its spin after is the spin before plus the change the impulse implies"
             );
-            (Some(pre.clone()), Some(post), check, Some(warning))
+            (
+                Some(pre.clone()),
+                Some(post),
+                check,
+                Some(warning),
+                [Matrix3::zeros(), Matrix3::identity()],
+            )
         }
         (None, Some(post)) => {
             let mut influence = post.frame_influence.clone();
@@ -255,11 +318,17 @@ pub fn reconcile(
             let warning = format!(
                 "sphere {name}: too few markers tracked before the impact (none, or under two tracks' worth); its spin before is the spin after minus the change the impulse implies"
             );
-            (Some(pre), Some(post.clone()), check, Some(warning))
+            (
+                Some(pre),
+                Some(post.clone()),
+                check,
+                Some(warning),
+                [-Matrix3::identity(), Matrix3::zeros()],
+            )
         }
         (None, None) => {
             check.spin_post_from = "not measured".into();
-            (None, None, check, None)
+            (None, None, check, None, none)
         }
     }
 }

@@ -114,9 +114,13 @@ pub(super) fn spin_variance(
     contact_mm: f64,
     g: f64,
 ) -> Result<Vec<f64>, ImpactError> {
+    // Where the spins follow the impulse in `derive`, its own error terms are the velocities'
+    // and the normal's, which the fits' part carries with their correlations: not again here.
+    let coupled = bodies.impulse.is_some();
     let mut frames: Vec<usize> = measured
         .iter()
         .flat_map(|m| m.frame_influence.iter().map(|(f, _)| *f))
+        .filter(|&f| !(coupled && (0..2).any(|s| super::impulse::is_impulse_term(f, s))))
         .collect();
     frames.sort_unstable();
     frames.dedup();

@@ -178,6 +178,7 @@ fn impact_split(
 fn bodies(fits: &Fits, set: &Setup, warnings: &mut Vec<String>) -> Bodies {
     Bodies {
         radii: set.radii,
+        impulse: None,
         momentum: match set
             .masses_known
             .and_then(|masses| momentum::check(fits, masses))
@@ -295,6 +296,11 @@ pub(super) fn observations_once(
         &mut warnings,
     );
     let spin_fits = spins.all_four(&mut warnings);
+    // From here on the spins move with the impulse they were reconciled with.
+    let bodies = Bodies {
+        impulse: spins.impulse,
+        ..bodies
+    };
     let impact_err = |e: ImpactError| AnalysisError::NoImpact {
         source_name: info.name.clone(),
         message: format!("{e:?}"),

@@ -6,7 +6,7 @@
 use super::super::geometry::View;
 use super::super::handedness;
 use super::super::impulse;
-use super::super::kinematics::{derive, Bodies, Fits, V3};
+use super::super::kinematics::{derive, Bodies, Fits, ImpulseCoupling, V3};
 use super::super::phases::{self, relift_on_trajectories};
 use super::super::report::SpinCheck;
 use super::super::rotation::SpinFit;
@@ -31,6 +31,10 @@ pub(super) struct PhaseSpins {
     /// says: which, and how clearly (the spins above are measured so where it is clear, and
     /// widened by the other way's where it is in doubt).
     pub(super) handedness: Option<handedness::Verdict>,
+    /// How the reported spins follow the impulse they were reconciled with, for the
+    /// derivation and its uncertainties (`kinematics::ImpulseCoupling`); None where no check
+    /// was made.
+    pub(super) impulse: Option<ImpulseCoupling>,
 }
 
 impl PhaseSpins {
@@ -90,6 +94,7 @@ impl PhaseSpins {
             [0, 1, 2, 3].map(|k| measured[k].reportable().cloned());
         let mut checks: [Option<SpinCheck>; 2] = [None, None];
         let k_inertia = cfg.spheres.inertia_factor;
+        let mut coupling: Option<ImpulseCoupling> = None;
         // The velocities' and the normal's σ with the jackknife over frames (the propagated
         // covariance alone understated the predicted Δω's scatter about twofold on the bench).
         if let (Ok(d0), Ok(s0)) = (
@@ -109,6 +114,13 @@ impl PhaseSpins {
             ),
         ) {
             let measured_3d = s0.velocities.iter().all(|v| v.iter().all(|x| *x > 0.0));
+            if measured_3d {
+                coupling = Some(ImpulseCoupling {
+                    inertia_factor: k_inertia,
+                    weight: [[nalgebra::Matrix3::zeros(); 2]; 2],
+                    delta_omega: [V3::zeros(); 2],
+                });
+            }
             for s in 0..2 {
                 if !measured_3d {
                     break;
@@ -119,8 +131,16 @@ impl PhaseSpins {
                     + s0.velocities[2 + s].component_mul(&s0.velocities[2 + s]))
                 .map(f64::sqrt);
                 let imp = impulse::predicted(n, s0.normal, dv, dv_sigma, set.radii[s], k_inertia);
-                let (pre, post, check, warning) =
-                    impulse::reconcile(s, reconciled[s].as_ref(), reconciled[2 + s].as_ref(), &imp);
+                let (pre, post, check, warning, weights) = impulse::reconcile_weighted(
+                    s,
+                    reconciled[s].as_ref(),
+                    reconciled[2 + s].as_ref(),
+                    &imp,
+                );
+                if let Some(c) = coupling.as_mut() {
+                    c.weight[s] = weights;
+                    c.delta_omega[s] = imp.delta_omega;
+                }
                 reconciled[s] = pre;
                 reconciled[2 + s] = post;
                 checks[s] = Some(check);
@@ -148,6 +168,7 @@ impl PhaseSpins {
             reconciled,
             checks,
             handedness: verdict,
+            impulse: coupling,
         }
     }
 
