@@ -80,7 +80,8 @@ impl LensFrame {
 /// along its image of x (u, or v on a camera turned on its side); both through one lens of
 /// radial distortion k1 (held at 0 unless `lens` is given, and at `lens_k1_held` where that is
 /// given: a dot grid's). Held: the direct view's origin and the mirror's offset along its image
-/// of z (the world origin, a choice), the mirror's flips.
+/// of z (the world origin, a choice), the mirror's flips, and each camera's 1/distance at 0
+/// where `perspective` says so (a camera the flights show no perspective of: `calibrate`).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fit_bundle(
     obs: &[FrameObs],
@@ -93,6 +94,7 @@ pub(super) fn fit_bundle(
     provisional_mirror: Option<&View>,
     lens: Option<LensFrame>,
     lens_k1_held: Option<f64>,
+    perspective: [bool; 2],
     views: &[View],
 ) -> Result<Bundle, String> {
     let mut pts = Vec::new();
@@ -257,9 +259,11 @@ pub(super) fn fit_bundle(
     // A held k1 (a grid's) is first fitted free like the rest, and held only once the flights
     // are fitted: held from the start, the descent and the outliers it leaves out have ended in
     // a minimum with every scale 3 % off (a recording through a lens of k1 = −0.03).
+    // A camera held orthographic (`perspective` false) keeps its κ at 0.
     let free_of = |k1_free: bool| -> Vec<usize> {
         (0..np)
             .filter(|&c| c != 9 || (lens.is_some() && k1_free))
+            .filter(|&c| !(c == 7 || c == 8) || perspective[c - 7])
             .filter(|&c| with_mirror || !(2..nv - 1).contains(&c))
             .filter(|&c| with_mirror || (c < nv || (c - nv) % 6 < 4))
             .collect()

@@ -488,7 +488,7 @@ pub fn calibrate(
         }
         None => None,
     };
-    let fit = |lens, held| {
+    let fit = |lens, held, perspective| {
         fit_bundle(
             obs,
             &phases,
@@ -500,19 +500,44 @@ pub fn calibrate(
             mi.map(|i| &views[i]),
             lens,
             held,
+            perspective,
             views,
         )
         .map_err(&data)
     };
+    let free = [true; 2];
     let (bundle, with_lens_k1, lens_found) = match &grid_fit {
-        Some(gf) => (fit(Some(frame), Some(gf.lens_k1.value))?, gf.lens_k1, true),
+        Some(gf) => (
+            fit(Some(frame), Some(gf.lens_k1.value), free)?,
+            gf.lens_k1,
+            true,
+        ),
         None => {
-            let with_lens = fit(Some(frame), None)?;
+            let with_lens = fit(Some(frame), None, free)?;
             let k1 = with_lens.lens_k1;
             let found = k1.value.abs() > 3.0 * k1.sigma;
-            let bundle = if found { with_lens } else { fit(None, None)? };
+            let bundle = if found {
+                with_lens
+            } else {
+                fit(None, None, free)?
+            };
             (bundle, k1, found)
         }
+    };
+    // A camera whose perspective the flights do not show (`distance`) is written as an affine
+    // map, so its maps are fitted again with its 1/distance held at 0, as an orthographic
+    // rig's would be. Why: a free 1/distance trades with the scale where the spheres flew away
+    // from the world origin's depth, and the scale at the origin it leaves is not the scale an
+    // affine map needs there. A defocused side-lit recording (seed 31) flew 10 mm off it and
+    // came out with 1/distance 0.005 /mm (1.3σ, not kept) and both scales 6 % high: e 0.01 off
+    // (docs/accuracy.md, session 47).
+    let shows = [0, 1].map(|c| distance(bundle.kappa[c]).is_some());
+    let bundle = if shows == [true; 2] {
+        bundle
+    } else {
+        let lens = lens_found.then_some(frame);
+        let held = grid_fit.as_ref().map(|gf| gf.lens_k1.value);
+        fit(lens, held, shows)?
     };
     // The whole world scaled by 1/k and every map by k images the same flights (each camera's
     // 1/distance scales with the maps): so the flights fix the mirror's scale against the
