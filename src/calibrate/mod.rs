@@ -528,9 +528,9 @@ pub fn calibrate(
     // map, so its maps are fitted again with its 1/distance held at 0, as an orthographic
     // rig's would be. Why: a free 1/distance trades with the scale where the spheres flew away
     // from the world origin's depth, and the scale at the origin it leaves is not the scale an
-    // affine map needs there. A defocused side-lit recording (seed 31) flew 10 mm off it and
-    // came out with 1/distance 0.005 /mm (1.3σ, not kept) and both scales 6 % high: e 0.01 off
-    // (docs/accuracy.md, session 47).
+    // affine map needs there. A defocused side-lit recording (seed 31) came out with 1/distance
+    // 0.005 /mm (not beyond 4σ, not kept) and both scales 6 % high: e 0.01 off (docs/accuracy.md,
+    // session 47).
     let shows = [0, 1].map(|c| distance(bundle.kappa[c]).is_some());
     let bundle = if shows == [true; 2] {
         bundle

@@ -374,8 +374,9 @@ fn the_bundle_finds_the_lens_the_flights_were_seen_through() {
 /// 10 mm nearer the direct camera than the world origin, every scale and turn within its σ.
 /// Why the hold: a free 1/distance trades with the scale where the flights lie off the
 /// origin's depth, and an affine map written with the scale at the origin is then off where the
-/// spheres flew (a defocused side-lit recording: 1/distance 0.005 /mm at 1.3σ, not written, both
-/// scales 6 % high where held they were 4.8 % high; docs/accuracy.md, session 47).
+/// spheres flew (a defocused side-lit recording: 1/distance 0.005 /mm, not beyond 4σ so not
+/// written, and both scales 6 % high, where held they were 4.8 % high; docs/accuracy.md,
+/// session 47).
 #[test]
 fn a_camera_held_orthographic_keeps_its_distance_unfitted() {
     let none = Fitted {
