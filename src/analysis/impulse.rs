@@ -238,17 +238,11 @@ pub fn reconcile_weighted(
             // the covariance is thin, and full weights trusted the thin direction. The
             // covariance below is still the combination's own, with every correlation in it.
             let diagonal = |c: &Matrix3<f64>| Matrix3::from_diagonal(&c.diagonal());
-            let combined = diagonal(&c1).try_inverse().zip(diagonal(&c2).try_inverse());
-            let Some((w1, w2)) = combined else {
-                return (
-                    Some(widen(pre, 3)),
-                    Some(widen(post, 4)),
-                    check,
-                    warning,
-                    none,
-                );
-            };
-            let Some(sum_inv) = (w1 + w2).try_inverse() else {
+            let weights = diagonal(&c1)
+                .try_inverse()
+                .zip(diagonal(&c2).try_inverse())
+                .and_then(|(w1, w2)| Some((w1, (w1 + w2).try_inverse()?)));
+            let Some((w1, sum_inv)) = weights else {
                 return (
                     Some(widen(pre, 3)),
                     Some(widen(post, 4)),

@@ -214,6 +214,23 @@ fn the_bundle_finds_a_rig_turned_on_its_side() {
     assert!(m.residual_rms_px < 0.03, "{}", m.residual_rms_px);
 }
 
+/// The thesis's rig, square and unturned, each camera at 1/distance `kappa`: the direct view's
+/// origin, both views, and the mirror's matrix.
+fn thesis_rig(kappa: Fitted) -> ([f64; 2], View, View, [[f64; 3]; 2]) {
+    let (od, om) = ([119.5, 44.0], [121.0, 144.0]);
+    let md = direct_matrix(2.1576, 0.0, 1.0);
+    let direct = View::from_config(
+        ViewKind::Direct,
+        &view_geometry([0, 0, 240, 96], md, od, ViewKind::Direct, kappa),
+    );
+    let mm = mirror_matrix(2.1175, [0.0; 3], MirrorAxes::THESIS);
+    let mirror = View::from_config(
+        ViewKind::Mirror,
+        &view_geometry([0, 96, 240, 96], mm, om, ViewKind::Mirror, kappa),
+    );
+    (od, direct, mirror, mm)
+}
+
 /// Where the spheres flew in depth, as the fit says: the mean of the fitted centres'
 /// distance towards each camera, which is where the imaged diameter measures the scale
 /// under perspective (calibrate corrects the diameter's scale to the world origin by it).
@@ -223,22 +240,7 @@ fn the_bundle_says_how_deep_the_flights_were() {
         value: 1.0 / 300.0,
         sigma: 0.0,
     };
-    let (od, om) = ([119.5, 44.0], [121.0, 144.0]);
-    let direct = View::from_config(
-        ViewKind::Direct,
-        &view_geometry(
-            [0, 0, 240, 96],
-            direct_matrix(2.1576, 0.0, 1.0),
-            od,
-            ViewKind::Direct,
-            kappa,
-        ),
-    );
-    let mm = mirror_matrix(2.1175, [0.0; 3], MirrorAxes::THESIS);
-    let mirror = View::from_config(
-        ViewKind::Mirror,
-        &view_geometry([0, 96, 240, 96], mm, om, ViewKind::Mirror, kappa),
-    );
+    let (od, direct, mirror, mm) = thesis_rig(kappa);
     let facing_mirror = facing_of(&mm, ViewKind::Mirror);
     for (offset, seed) in [(V3::new(0.0, 3.0, 12.0), 7), (V3::new(2.0, -4.0, -9.0), 8)] {
         let (obs, phases) = flights_through_at([&direct, &mirror], 0.02, seed, offset);
@@ -383,22 +385,7 @@ fn a_camera_held_orthographic_keeps_its_distance_unfitted() {
         value: 0.0,
         sigma: 0.0,
     };
-    let (od, om) = ([119.5, 44.0], [121.0, 144.0]);
-    let direct = View::from_config(
-        ViewKind::Direct,
-        &view_geometry(
-            [0, 0, 240, 96],
-            direct_matrix(2.1576, 0.0, 1.0),
-            od,
-            ViewKind::Direct,
-            none,
-        ),
-    );
-    let mm = mirror_matrix(2.1175, [0.0; 3], MirrorAxes::THESIS);
-    let mirror = View::from_config(
-        ViewKind::Mirror,
-        &view_geometry([0, 96, 240, 96], mm, om, ViewKind::Mirror, none),
-    );
+    let (od, direct, mirror, _) = thesis_rig(none);
     let (obs, phases) = flights_through_at([&direct, &mirror], 0.05, 11, V3::new(0.0, 0.0, 10.0));
     let fit = |perspective: [bool; 2]| {
         fit_bundle(
