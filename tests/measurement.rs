@@ -208,6 +208,16 @@ fn the_mirror_scale_and_offset_are_refined_from_the_redundant_x() {
     let du = c["mirror_origin_u_px_refined"].as_f64().unwrap()
         - c["mirror_origin_u_px_config"].as_f64().unwrap();
     assert!((du - 2.0).abs() < 0.3, "offset change {du} px");
+    // The whole origin: moved along u (the image of x here), not along v.
+    let origin = |key: &str| c[key][1].as_f64().unwrap_or(f64::NAN);
+    assert_eq!(
+        origin("mirror_origin_px_refined"),
+        origin("mirror_origin_px_config")
+    );
+    assert_eq!(
+        c["mirror_origin_px_refined"][0], c["mirror_origin_u_px_refined"],
+        "{c}"
+    );
     assert!(
         c["residual_rms_mm_after"].as_f64().unwrap()
             < 0.3 * c["mirror_minus_direct_x_rms_mm"].as_f64().unwrap(),

@@ -659,7 +659,8 @@ fn a_camera_that_flips_its_image_is_said_by_image_mirrored_or_found_by_its_marke
 /// A camera mounted on its side: a recording of the thesis rig with every frame turned by 90°
 /// (pixel (u, v) to (v, 239 − u): the views side by side, world x down the image's rows), read
 /// as a TIFF stack. With the turned shorthand the analysis measures it as it does upright (e,
-/// ψ1, ψ2 within the goals' bounds of the truth); `calibrate`, started from that shorthand,
+/// ψ1, ψ2 within the goals' bounds of the truth), its mirror's origin given 2 px off along
+/// the image of x refined back along it and the report saying so; `calibrate`, started from that shorthand,
 /// finds the 90° roll, keeps the side-by-side regions, and its maps give e within 0.01 and ψ
 /// within 0.05. Before: the mirror's model had x along u whatever the config said, and the
 /// independent renders so turned lost a whole phase's y in one and calibrate's maps failed on
@@ -712,10 +713,30 @@ fn a_camera_turned_on_its_side_is_measured_and_calibrated_as_upright() {
     let turned_rig = "[camera]\nwidth = 192\nheight = 240\n\
         [geometry.direct]\nregion = [0, 0, 96, 240]\npx_per_mm = 2.1576\norigin_px = [44.0, 119.5]\n\
         u_axis = \"-y\"\nv_axis = \"-x\"\n\
-        [geometry.mirror]\nregion = [96, 0, 96, 240]\npx_per_mm = 2.1175\norigin_px = [144.0, 118.0]\n\
+        [geometry.mirror]\nregion = [96, 0, 96, 240]\npx_per_mm = 2.1175\norigin_px = [144.0, 120.0]\n\
         u_axis = \"+z\"\nv_axis = \"-x\"\n";
     std::fs::write(t.path().join("turned.toml"), turned_rig).unwrap();
     let turned = analyze_with(t.path(), Path::new("turned.tif"), "turned.toml", "turned");
+    // The mirror's origin given 2 px off along v (true: 239 − 121 = 118), the image of x on
+    // this camera: the analysis's refinement moves it back along v, leaves u, and says so.
+    let c = &turned["quality"]["calibration"];
+    assert_eq!(c["refined"], true, "{c}");
+    let origin = |key: &str| -> [f64; 2] {
+        let a = c[key].as_array().unwrap_or_else(|| panic!("{key}: {c}"));
+        [a[0].as_f64().unwrap(), a[1].as_f64().unwrap()]
+    };
+    let (given, refined) = (
+        origin("mirror_origin_px_config"),
+        origin("mirror_origin_px_refined"),
+    );
+    assert_eq!(given, [144.0, 120.0]);
+    assert_eq!(refined[0], given[0], "u is z here, not refined: {c}");
+    assert!(
+        (refined[1] - 118.0).abs() < 0.3,
+        "v refined to {}: {c}",
+        refined[1]
+    );
+    assert_eq!(c["mirror_origin_u_px_refined"].as_f64(), Some(refined[0]));
     for (report, rig) in [(&upright, "upright"), (&turned, "turned on its side")] {
         check(report, &truth, "e", 0.03, rig);
         check(report, &truth, "psi1", 0.1, rig);

@@ -77,7 +77,7 @@ pub(super) fn residual_stats(pairs: &[(f64, f64)]) -> (f64, f64) {
     (mean, rms)
 }
 
-/// Refines the mirror view's scale and u-offset from the x coordinate both views see
+/// Refines the mirror view's scale and offset (along its image of x) from the x coordinate both views see
 /// (physics.md §5, minimum calibration): x_mirror = a·x_direct + b over the whole recording.
 /// With the config's scale s and offset u0, the true ones are a·s and u0 + sign·b·s. Applied
 /// only when the fit is well conditioned (≥ 10 pairs over ≥ 3 mm of x); always reported.
@@ -89,7 +89,7 @@ pub(super) fn calibrate_mirror(obs: &[FrameObs], views: &mut [View]) -> Option<C
     let (mean_before, rms_before) = residual_stats(&pairs);
     let mi = views.iter().position(|v| v.kind == ViewKind::Mirror)?;
     let config_scale = views[mi].px_per_mm;
-    let config_origin_u = views[mi].origin_px[0];
+    let config_origin = views[mi].origin_px;
     let mut refined = false;
     if let Some(l) = fit_line(&pairs).filter(|l| pairs.len() >= 10 && l.x_span >= 3.0) {
         refined = views[mi].rescale(l.slope, l.intercept);
@@ -106,8 +106,10 @@ pub(super) fn calibrate_mirror(obs: &[FrameObs], views: &mut [View]) -> Option<C
         refined,
         mirror_px_per_mm_config: config_scale,
         mirror_px_per_mm_refined: views[mi].px_per_mm,
-        mirror_origin_u_px_config: config_origin_u,
+        mirror_origin_u_px_config: config_origin[0],
         mirror_origin_u_px_refined: views[mi].origin_px[0],
+        mirror_origin_px_config: Some(config_origin),
+        mirror_origin_px_refined: Some(views[mi].origin_px),
         residual_mean_mm_after: mean_after,
         residual_rms_mm_after: rms_after,
         residual_per_mm_of_y: None,

@@ -196,13 +196,23 @@ pub struct Calibration {
     /// Mirror-view x minus direct-view x with the config's geometry, mm.
     pub mirror_minus_direct_x_mean_mm: f64,
     pub mirror_minus_direct_x_rms_mm: f64,
-    /// Whether the mirror's scale and u-offset were refined from the redundant x (needs ≥ 10
+    /// Whether the mirror's scale and offset were refined from the redundant x (needs ≥ 10
     /// centres over ≥ 3 mm of x).
     pub refined: bool,
     pub mirror_px_per_mm_config: f64,
     pub mirror_px_per_mm_refined: f64,
+    /// The mirror's origin's u, px (kept as it was first written; `mirror_origin_px_*` give
+    /// both image coordinates).
     pub mirror_origin_u_px_config: f64,
     pub mirror_origin_u_px_refined: f64,
+    /// The mirror's origin [u, v], px, as the config gives it and as refined. The refinement
+    /// moves it along the image of world x, which is v on a camera turned on its side and
+    /// both axes on a rolled one (a general map): the u fields alone do not say what changed
+    /// there. Absent from reports written before session 48.
+    #[serde(default)]
+    pub mirror_origin_px_config: Option<[f64; 2]>,
+    #[serde(default)]
+    pub mirror_origin_px_refined: Option<[f64; 2]>,
     /// Mirror x minus direct x after refinement, mm.
     pub residual_mean_mm_after: f64,
     pub residual_rms_mm_after: f64,
