@@ -22,6 +22,9 @@ pub(super) struct Term {
     size: f64,
     /// The config key it comes from.
     key: String,
+    /// A turn of the direct view stepped as the whole world's, every view turned with it
+    /// (`turned_views`); its other term turns the direct view alone.
+    whole_world: bool,
 }
 
 /// The parameters whose uncertainty the config gives (zeros left out).
@@ -38,6 +41,7 @@ pub(super) fn terms(geometry: &Geometry) -> Vec<Term> {
                 axis: None,
                 size: p / 100.0,
                 key: format!("geometry.{name}.px_per_mm_uncertainty_percent"),
+                whole_world: false,
             });
         }
         for (i, d) in v
@@ -52,7 +56,17 @@ pub(super) fn terms(geometry: &Geometry) -> Vec<Term> {
                     axis: Some(i),
                     size: d.to_radians(),
                     key: format!("geometry.{name}.turn_uncertainty_deg[{i}]"),
+                    whole_world: false,
                 });
+                if kind == ViewKind::Direct {
+                    out.push(Term {
+                        view: kind,
+                        axis: Some(i),
+                        size: d.to_radians(),
+                        key: format!("geometry.{name}.turn_uncertainty_deg[{i}], every view"),
+                        whole_world: true,
+                    });
+                }
             }
         }
     }
@@ -60,13 +74,21 @@ pub(super) fn terms(geometry: &Geometry) -> Vec<Term> {
 }
 
 /// Every view through the general map, the one `term` names turned by its step (none turned
-/// without a term: the baseline the turned runs are compared with).
+/// without a term: the baseline the turned runs are compared with). A turn of the direct view
+/// is stepped twice (`terms`): alone, and with every view turned by it (`Term::whole_world`).
+/// Why both: the direct camera's turns are both how it lies against the mirror, which moves e
+/// and ψ as the views then disagree, and how the world the maps describe lies (calibrate takes
+/// the camera as square, 0 ± `DIRECT_SQUARE_DEG` about x and y, and fits the mirror to it),
+/// which turns the velocities and spins. With the direct view's step alone, on rigs whose
+/// direct camera was yawed by 1–1.6°, calibrated, the z velocities came out 8–16 mm/s off (the
+/// world turned, x into z) with σ about 1 mm/s; with the world's step alone, e came out up to
+/// 4.4σ off (docs/accuracy.md, session 48).
 pub(super) fn turned_views(views: &[View], term: Option<&Term>) -> Vec<View> {
     views
         .iter()
         .map(|v| {
             let (r, scale) = match term {
-                Some(t) if t.view == v.kind => match t.axis {
+                Some(t) if t.view == v.kind || t.whole_world => match t.axis {
                     Some(i) => {
                         let axis = Vector3::ith_axis(i);
                         (Rotation3::from_axis_angle(&axis, t.size).into_inner(), 1.0)
@@ -183,6 +205,7 @@ mod tests {
             [
                 "geometry.direct.px_per_mm_uncertainty_percent",
                 "geometry.direct.turn_uncertainty_deg[2]",
+                "geometry.direct.turn_uncertainty_deg[2], every view",
                 "geometry.mirror.turn_uncertainty_deg[0]",
             ]
         );
@@ -196,10 +219,10 @@ mod tests {
             let (x, y) = (a.project(&p), b.project(&p));
             assert!((x[0] - y[0]).abs() < 1e-9 && (x[1] - y[1]).abs() < 1e-9);
         }
-        // The roll's step: the direct view sees the world turned about z; the mirror is not
-        // touched.
-        let turned = turned_views(&views, Some(&terms[1]));
+        // The direct view's roll's steps: the direct view alone sees the world turned about
+        // z; then every view does (the direct camera's turns are the world's axes too).
         let r = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.2f64.to_radians());
+        let turned = turned_views(&views, Some(&terms[1]));
         let (want, got) = (views[0].project(&(r * p)), turned[0].project(&p));
         assert!((want[0] - got[0]).abs() < 1e-9 && (want[1] - got[1]).abs() < 1e-9);
         assert!(
@@ -208,6 +231,22 @@ mod tests {
         );
         let (m0, m1) = (views[1].project(&p), turned[1].project(&p));
         assert!((m0[0] - m1[0]).abs() < 1e-9 && (m0[1] - m1[1]).abs() < 1e-9);
+        let turned = turned_views(&views, Some(&terms[2]));
+        for (v, t) in views.iter().zip(&turned) {
+            let (want, got) = (v.project(&(r * p)), t.project(&p));
+            assert!((want[0] - got[0]).abs() < 1e-9 && (want[1] - got[1]).abs() < 1e-9);
+            assert!(
+                (want[0] - v.project(&p)[0]).abs() + (want[1] - v.project(&p)[1]).abs() > 1e-3,
+                "the step moves it"
+            );
+        }
+        // The mirror's own turn: the mirror alone.
+        let turned = turned_views(&views, Some(&terms[3]));
+        let r = Rotation3::from_axis_angle(&Vector3::x_axis(), 0.3f64.to_radians());
+        let (want, got) = (views[1].project(&(r * p)), turned[1].project(&p));
+        assert!((want[0] - got[0]).abs() < 1e-9 && (want[1] - got[1]).abs() < 1e-9);
+        let (d0, d1) = (views[0].project(&p), turned[0].project(&p));
+        assert!((d0[0] - d1[0]).abs() < 1e-9 && (d0[1] - d1[1]).abs() < 1e-9);
         // The scale's step.
         let scaled = turned_views(&views, Some(&terms[0]));
         let (want, got) = (views[0].project(&(p * 1.005)), scaled[0].project(&p));

@@ -681,6 +681,14 @@ pub const SCALES_AGREE_SIGMA: f64 = 3.0;
 /// `flights::diameter_scale`), and a grazing impact's e moves by about ψ1·0.8 times a scale's
 /// error (the contact distance is a diameter in mm): on an independent render at ψ1 = 2.5 the
 /// flights' scale alone, 0.8 % off (1.1σ), put e 0.049 off.
+///
+/// The σ says how far apart the two were, not only their own σ: weighed, it is widened by
+/// their difference in σ where that is beyond 1 (the Particle Data Group's scale factor for
+/// two measurements); the flights' alone take the difference itself into their σ, since
+/// nothing here tells which of the two the look misled. Why: on 72 hw-sim rigs drawn at
+/// random and calibrated, a side-lit one's flights put the scale 3.8 % high where its diameter
+/// was right, a defocused one's 4.0 % with the diameter 2.1σ from them, and their velocities
+/// came out up to 6σ off (docs/accuracy.md, session 48).
 fn combine_scales(flights: Fitted, diameter: Fitted) -> (Fitted, Option<f64>) {
     let z = (diameter.value - flights.value) / flights.sigma.hypot(diameter.sigma);
     let usable = |f: Fitted| f.value.is_finite() && f.sigma.is_finite() && f.sigma > 0.0;
@@ -688,13 +696,20 @@ fn combine_scales(flights: Fitted, diameter: Fitted) -> (Fitted, Option<f64>) {
         return (flights, None);
     }
     if z.abs() > SCALES_AGREE_SIGMA {
-        return (flights, Some(z));
+        let apart = diameter.value - flights.value;
+        return (
+            Fitted {
+                value: flights.value,
+                sigma: flights.sigma.hypot(apart),
+            },
+            Some(z),
+        );
     }
     let (wf, wd) = (flights.sigma.powi(-2), diameter.sigma.powi(-2));
     (
         Fitted {
             value: (wf * flights.value + wd * diameter.value) / (wf + wd),
-            sigma: (wf + wd).recip().sqrt(),
+            sigma: (wf + wd).recip().sqrt() * z.abs().max(1.0),
         },
         None,
     )
@@ -708,18 +723,27 @@ mod tests {
         Fitted { value, sigma }
     }
 
-    /// Scales that agree are weighed by their σ, the result knowing more than either; a
-    /// diameter's scale beyond 3σ of the flights' is left out and the distance said.
+    /// Scales that agree are weighed by their σ, the result knowing more than either where
+    /// they lie within 1σ of each other, and its σ widened by their distance in σ beyond; a
+    /// diameter's scale beyond 3σ of the flights' is left out, the distance said and taken
+    /// into the σ.
     #[test]
     fn the_flights_and_the_diameters_scales_are_weighed_where_they_agree() {
-        let (both, note) = combine_scales(fitted(2.3375, 0.0178), fitted(2.3146, 0.0095));
-        assert_eq!(note, None);
         let (wf, wd) = (0.0178f64.powi(-2), 0.0095f64.powi(-2));
-        assert!((both.value - (wf * 2.3375 + wd * 2.3146) / (wf + wd)).abs() < 1e-12);
-        assert!(both.value > 2.3146 && both.value < 2.3375);
-        assert!(both.sigma < 0.0095, "{}", both.sigma);
+        let weighed = (wf + wd).recip().sqrt();
+        let (both, note) = combine_scales(fitted(2.3275, 0.0178), fitted(2.3146, 0.0095));
+        assert_eq!(note, None);
+        assert!((both.value - (wf * 2.3275 + wd * 2.3146) / (wf + wd)).abs() < 1e-12);
+        assert!(both.value > 2.3146 && both.value < 2.3275);
+        assert_eq!(both.sigma, weighed, "within 1σ of each other");
+        // 2.0σ apart: the same weighing, its σ twice as wide.
+        let apart = 2.0 * 0.0178f64.hypot(0.0095);
+        let (wide, note) = combine_scales(fitted(2.3146 + apart, 0.0178), fitted(2.3146, 0.0095));
+        assert_eq!(note, None);
+        assert!((wide.sigma - 2.0 * weighed).abs() < 1e-12, "{}", wide.sigma);
         let (alone, note) = combine_scales(fitted(2.1576, 0.002), fitted(2.10, 0.005));
-        assert_eq!((alone.value, alone.sigma), (2.1576, 0.002));
+        assert_eq!(alone.value, 2.1576);
+        assert!((alone.sigma - 0.002f64.hypot(2.1576 - 2.10)).abs() < 1e-12);
         let z = note.unwrap();
         assert!(
             (z - (2.10 - 2.1576) / 0.002f64.hypot(0.005)).abs() < 1e-9,
