@@ -441,7 +441,7 @@ pub(super) fn fit_bundle(
 /// (`tracking::measure::fit_blob`), here the provisional map's, with no lens yet (calibrate is
 /// fitting it) and no perspective, which makes it wrong there; its centre moves across the cut
 /// with that error.
-fn cut_by_border(view: &View, m: &crate::analysis::tracking::Measurement) -> bool {
+pub(super) fn cut_by_border(view: &View, m: &crate::analysis::tracking::Measurement) -> bool {
     let r = 0.5 * m.diameter_px + 1.0;
     let [c0, c1] = m.centre_px;
     !(view.contains(c0 - r, c1)

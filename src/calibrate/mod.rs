@@ -32,7 +32,7 @@ mod regions;
 use crate::analysis::tracking::FrameObs;
 use crate::analysis::{self, AnalysisError, FrameSource};
 use crate::config::Config;
-use bundle::{fit_bundle, LensFrame};
+use bundle::{cut_by_border, fit_bundle, LensFrame};
 use flights::{diameter_scale, flights, parabola_acceleration};
 use maps::{direct_matrix, distance, mirror_matrix, view_geometry, x_sign};
 use provisional::{align_mirror, line_fit, local_scale, set_scale, x_index, MirrorAxes};
@@ -428,12 +428,16 @@ pub fn calibrate(
     let g = cfg.analysis.gravity_mm_s2;
     let diam = [cfg.spheres.sphere(0).0, cfg.spheres.sphere(1).0];
 
-    // Direct view: free fall per flight, pooled.
+    // Direct view: free fall per flight, pooled; whole discs only, as the bundle takes them
+    // (`cut_by_border`).
     let mut acc = Vec::new();
     for (k, frames) in phases.iter().enumerate() {
         let pts: Vec<(f64, [f64; 2])> = frames
             .iter()
-            .filter_map(|&i| Some((obs[i].time_s, obs[i].spheres[k % 2][di].as_ref()?.centre_px)))
+            .filter_map(|&i| {
+                let m = obs[i].spheres[k % 2][di].as_ref()?;
+                (!cut_by_border(&views[di], m)).then_some((obs[i].time_s, m.centre_px))
+            })
             .collect();
         if let Some(a) = parabola_acceleration(&pts) {
             acc.push(a);
@@ -453,9 +457,16 @@ pub fn calibrate(
     }
     let (au, av, sa) = (au / w, av / w, w.recip().sqrt());
     let a_norm = au.hypot(av);
+    // How much more the flights' accelerations scatter than their σ say (Birge's ratio, at
+    // least 1): a disc's centre errs alike from frame to frame as it crosses the light and the
+    // pixel grid, which a fit that takes its residuals for independent cannot see, and every
+    // scale from the flights' curvature carries it. On 72 hw-sim rigs drawn at random and
+    // calibrated (docs/accuracy.md, session 48) the flights' scale was within its σ on 50 %
+    // and beyond 3σ on 9, up to 6σ; the diameter's within its σ on 93 %, none beyond 2σ.
+    let scatter = scatter_ratio(&acc, [au, av]);
     let scale_from_free_fall = Fitted {
         value: a_norm / g,
-        sigma: sa / g,
+        sigma: sa / g * scatter,
     };
     let roll_deg = Fitted {
         value: au.atan2(av).to_degrees(),
@@ -553,8 +564,12 @@ pub fn calibrate(
         value: scale_from_diameter.value * at_origin,
         sigma: scale_from_diameter.sigma * at_origin,
     };
-    let (scale, diameter_disagrees_sigma) =
-        combine_scales(bundle.direct_scale, scale_from_diameter);
+    // The flights' scale knows no better than their accelerations' scatter lets it.
+    let scale_from_flights = Fitted {
+        value: bundle.direct_scale.value,
+        sigma: bundle.direct_scale.sigma * scatter,
+    };
+    let (scale, diameter_disagrees_sigma) = combine_scales(scale_from_flights, scale_from_diameter);
     let k = scale.value / bundle.direct_scale.value;
     let mut bundle = bundle;
     for kappa in &mut bundle.kappa {
@@ -654,7 +669,7 @@ pub fn calibrate(
         direct: DirectFit {
             scale_from_free_fall,
             scale_from_diameter,
-            scale_from_flights: bundle.direct_scale,
+            scale_from_flights,
             scale,
             diameter_disagrees_sigma,
             roll_deg: bundle.direct_roll,
@@ -667,6 +682,21 @@ pub fn calibrate(
         grid: grid_fit,
         geometry,
     })
+}
+
+/// Birge's ratio of the flights' accelerations (u, v, px/s², each with its σ per component)
+/// about their weighted mean: √(χ²/dof), at least 1 (1 where there is only one).
+fn scatter_ratio(acc: &[([f64; 2], f64)], mean: [f64; 2]) -> f64 {
+    let chi2: f64 = acc
+        .iter()
+        .map(|(a, s)| ((a[0] - mean[0]).powi(2) + (a[1] - mean[1]).powi(2)) / (s * s))
+        .sum();
+    let dof = 2 * acc.len().saturating_sub(1);
+    if dof > 0 && chi2.is_finite() {
+        (chi2 / dof as f64).sqrt().max(1.0)
+    } else {
+        1.0
+    }
 }
 
 /// How far apart, in σ of their difference, the flights' and the diameter's scales may lie and
@@ -752,6 +782,31 @@ mod tests {
         // Nothing to weigh: the flights' as they are.
         let (kept, note) = combine_scales(fitted(2.0, 0.01), fitted(f64::NAN, f64::NAN));
         assert_eq!((kept.value, note), (2.0, None));
+    }
+
+    /// The flights' accelerations scattered twice as widely as their σ say widen every scale
+    /// from them twice; scattered within their σ, not at all (the ratio is never below 1).
+    #[test]
+    fn flights_that_scatter_beyond_their_sigma_widen_it() {
+        let mean = [0.0, 21_000.0];
+        let at = |du: f64, dv: f64| ([mean[0] + du, mean[1] + dv], 100.0);
+        // Each flight 2σ off in u and in v: χ² = 4·(2² + 2²) = 32 over 2·(4 − 1) = 6 dof.
+        let wide = [
+            at(200.0, 200.0),
+            at(-200.0, -200.0),
+            at(200.0, -200.0),
+            at(-200.0, 200.0),
+        ];
+        let r = scatter_ratio(&wide, mean);
+        assert!((r - (32.0f64 / 6.0).sqrt()).abs() < 1e-12, "{r}");
+        let tight = [
+            at(10.0, -20.0),
+            at(-10.0, 20.0),
+            at(5.0, 0.0),
+            at(-5.0, 0.0),
+        ];
+        assert_eq!(scatter_ratio(&tight, mean), 1.0);
+        assert_eq!(scatter_ratio(&wide[..1], mean), 1.0);
     }
 
     /// What calibrate writes for how well it knows a map is always a value the config accepts:
