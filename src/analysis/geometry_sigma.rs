@@ -22,7 +22,7 @@ pub(super) struct Term {
     size: f64,
     /// The config key it comes from.
     key: String,
-    /// A turn of the direct view stepped as the whole world's, every view turned with it
+    /// The direct view's yaw stepped as the whole world's, every view turned with it
     /// (`turned_views`); its other term turns the direct view alone.
     whole_world: bool,
 }
@@ -58,7 +58,9 @@ pub(super) fn terms(geometry: &Geometry) -> Vec<Term> {
                     key: format!("geometry.{name}.turn_uncertainty_deg[{i}]"),
                     whole_world: false,
                 });
-                if kind == ViewKind::Direct {
+                // Only about the vertical: a turn about x or z would tilt gravity, which the
+                // flights fix (calibrate's world has g along −y), so only the yaw is free.
+                if kind == ViewKind::Direct && i == 1 {
                     out.push(Term {
                         view: kind,
                         axis: Some(i),
@@ -74,15 +76,16 @@ pub(super) fn terms(geometry: &Geometry) -> Vec<Term> {
 }
 
 /// Every view through the general map, the one `term` names turned by its step (none turned
-/// without a term: the baseline the turned runs are compared with). A turn of the direct view
-/// is stepped twice (`terms`): alone, and with every view turned by it (`Term::whole_world`).
-/// Why both: the direct camera's turns are both how it lies against the mirror, which moves e
-/// and ψ as the views then disagree, and how the world the maps describe lies (calibrate takes
-/// the camera as square, 0 ± `DIRECT_SQUARE_DEG` about x and y, and fits the mirror to it),
-/// which turns the velocities and spins. With the direct view's step alone, on rigs whose
-/// direct camera was yawed by 1–1.6°, calibrated, the z velocities came out 8–16 mm/s off (the
-/// world turned, x into z) with σ about 1 mm/s; with the world's step alone, e came out up to
-/// 4.4σ off (docs/accuracy.md, session 48).
+/// without a term: the baseline the turned runs are compared with). The direct view's turn
+/// about the vertical (y) is stepped twice (`terms`): alone, and with every view turned by it
+/// (`Term::whole_world`). Why both: the direct camera's yaw is both how it lies against the
+/// mirror, which moves e and ψ as the views then disagree, and how the world the maps describe
+/// lies about the vertical (calibrate takes the camera as square, 0 ± `DIRECT_SQUARE_DEG`, and
+/// fits the mirror to it), which turns the velocities and spins, x into z. With the direct
+/// view's step alone, on rigs whose direct camera was yawed by 1–1.6°, calibrated, the z
+/// velocities came out 8–16 mm/s off with σ about 1 mm/s; with the world's step alone, e came
+/// out up to 4.4σ off (docs/accuracy.md, session 48). A pitch shears z into y instead, and
+/// gravity fixes the world's vertical: its velocities' errors followed x, not y.
 pub(super) fn turned_views(views: &[View], term: Option<&Term>) -> Vec<View> {
     views
         .iter()
@@ -196,7 +199,7 @@ mod tests {
         let mut cfg = Config::default_config();
         let direct = cfg.geometry.direct.as_mut().unwrap();
         direct.px_per_mm_uncertainty_percent = Some(0.5);
-        direct.turn_uncertainty_deg = Some([0.0, 0.0, 0.2]);
+        direct.turn_uncertainty_deg = Some([0.0, 0.2, 0.0]);
         cfg.geometry.mirror.as_mut().unwrap().turn_uncertainty_deg = Some([0.3, 0.0, 0.0]);
         let terms = terms(&cfg.geometry);
         let keys: Vec<&str> = terms.iter().map(|t| t.key.as_str()).collect();
@@ -204,8 +207,8 @@ mod tests {
             keys,
             [
                 "geometry.direct.px_per_mm_uncertainty_percent",
-                "geometry.direct.turn_uncertainty_deg[2]",
-                "geometry.direct.turn_uncertainty_deg[2], every view",
+                "geometry.direct.turn_uncertainty_deg[1]",
+                "geometry.direct.turn_uncertainty_deg[1], every view",
                 "geometry.mirror.turn_uncertainty_deg[0]",
             ]
         );
@@ -219,9 +222,10 @@ mod tests {
             let (x, y) = (a.project(&p), b.project(&p));
             assert!((x[0] - y[0]).abs() < 1e-9 && (x[1] - y[1]).abs() < 1e-9);
         }
-        // The direct view's roll's steps: the direct view alone sees the world turned about
-        // z; then every view does (the direct camera's turns are the world's axes too).
-        let r = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.2f64.to_radians());
+        // The direct view's yaw's steps: the direct view alone sees the world turned about
+        // y; then every view does (the direct camera's yaw is how the world lies about the
+        // vertical too).
+        let r = Rotation3::from_axis_angle(&Vector3::y_axis(), 0.2f64.to_radians());
         let turned = turned_views(&views, Some(&terms[1]));
         let (want, got) = (views[0].project(&(r * p)), turned[0].project(&p));
         assert!((want[0] - got[0]).abs() < 1e-9 && (want[1] - got[1]).abs() < 1e-9);

@@ -550,6 +550,20 @@ pub fn calibrate(
         let held = grid_fit.as_ref().map(|gf| gf.lens_k1.value);
         fit(lens, held, shows)?
     };
+    // A lens left out (not shown beyond 3σ) is not shown absent either: each map parameter's σ
+    // takes in how far it moves with a lens fitted (the same holds otherwise). Why: k1 trades
+    // with the mirror's roll and the scale over flights that cover little of the frame; on 72
+    // rigs drawn at random, calibrated, a rig through k1 = −0.016 whose lens was left out
+    // (−0.021 ± 0.009 found) had its mirror rolled 7.0 ± 1.0° for 0.6°, and z velocities 6σ
+    // off (docs/accuracy.md, session 48).
+    let bundle = if lens_found {
+        bundle
+    } else {
+        match fit(Some(frame), None, shows) {
+            Ok(with_lens) => widened_by(bundle, &with_lens),
+            Err(_) => bundle,
+        }
+    };
     // The whole world scaled by 1/k and every map by k images the same flights (each camera's
     // 1/distance scales with the maps): so the flights fix the mirror's scale against the
     // direct view's far better than either alone, and a better direct scale moves both.
@@ -684,6 +698,28 @@ pub fn calibrate(
     })
 }
 
+/// `bundle` with each map parameter's σ widened by how far `other` (the same flights fitted
+/// under another model) puts it: σ² + Δ². Not the cameras' 1/distance, whose σ decided
+/// whether perspective shows and which the maps were written by.
+fn widened_by(mut bundle: bundle::Bundle, other: &bundle::Bundle) -> bundle::Bundle {
+    let widen = |f: &mut Fitted, o: Fitted| {
+        let d = f.value - o.value;
+        if d.is_finite() {
+            f.sigma = f.sigma.hypot(d);
+        }
+    };
+    widen(&mut bundle.direct_scale, other.direct_scale);
+    widen(&mut bundle.direct_roll, other.direct_roll);
+    if let (Some(m), Some(o)) = (bundle.mirror.as_mut(), other.mirror.as_ref()) {
+        widen(&mut m.scale, o.scale);
+        widen(&mut m.tilt_deg, o.tilt_deg);
+        widen(&mut m.roll_deg, o.roll_deg);
+        widen(&mut m.yaw_deg, o.yaw_deg);
+        widen(&mut m.origin_x_px, o.origin_x_px);
+    }
+    bundle
+}
+
 /// Birge's ratio of the flights' accelerations (u, v, px/s², each with its σ per component)
 /// about their weighted mean: √(χ²/dof), at least 1 (1 where there is only one).
 fn scatter_ratio(acc: &[([f64; 2], f64)], mean: [f64; 2]) -> f64 {
@@ -782,6 +818,50 @@ mod tests {
         // Nothing to weigh: the flights' as they are.
         let (kept, note) = combine_scales(fitted(2.0, 0.01), fitted(f64::NAN, f64::NAN));
         assert_eq!((kept.value, note), (2.0, None));
+    }
+
+    /// A lens left out widens each map parameter's σ by how far a lens fitted moves it (here
+    /// the mirror's roll, 7° against 0.6°), and leaves the values and the 1/distance alone.
+    #[test]
+    fn a_lens_left_out_widens_the_maps_by_what_it_would_move() {
+        let bundle = |roll_deg: f64, scale: f64| bundle::Bundle {
+            direct_scale: fitted(scale, 0.01),
+            direct_roll: fitted(0.3, 0.2),
+            kappa: [fitted(0.0, 1e-4), fitted(0.001, 2e-4)],
+            lens_k1: fitted(0.0, 0.0),
+            mirror: Some(MirrorFit {
+                scale: fitted(2.1, 0.02),
+                scale_from_diameter: fitted(f64::NAN, f64::NAN),
+                roll_deg: fitted(roll_deg, 1.0),
+                tilt_deg: fitted(-5.0, 0.4),
+                yaw_deg: fitted(0.5, 0.3),
+                origin_x_px: fitted(120.0, 0.01),
+                x_along_v: false,
+                x_reversed: false,
+                residual_rms_px: 0.04,
+                points: 100,
+                camera_distance_mm: None,
+            }),
+            residual_rms_px: [0.04, 0.04],
+            mean_depth_mm: [0.0, 0.0],
+        };
+        let without = bundle(7.0, 2.16);
+        let with_lens = bundle(0.6, 2.14);
+        let w = widened_by(without, &with_lens);
+        let m = w.mirror.as_ref().unwrap();
+        assert_eq!(m.roll_deg.value, 7.0);
+        assert!(
+            (m.roll_deg.sigma - 1.0f64.hypot(6.4)).abs() < 1e-9,
+            "{}",
+            m.roll_deg.sigma
+        );
+        assert!((w.direct_scale.sigma - 0.01f64.hypot(0.02)).abs() < 1e-9);
+        assert_eq!(
+            (m.tilt_deg.sigma, m.yaw_deg.sigma),
+            (0.4, 0.3),
+            "unmoved: as they were"
+        );
+        assert_eq!((w.kappa[1].value, w.kappa[1].sigma), (0.001, 2e-4));
     }
 
     /// The flights' accelerations scattered twice as widely as their σ say widen every scale

@@ -91,12 +91,13 @@ impl Calibrated {
             None => {
                 out += &format!(
                     "# lens: k1 {} (the fractional displacement at the frame's corners, about its centre);\n\
-                     #   {}; its σ is not carried into the estimates' uncertainty\n",
+                     #   {}\n",
                     p(&self.lens_k1, "", 5),
                     if self.lens_kept {
-                        "beyond 3σ, so written into both views"
+                        "beyond 3σ, so written into both views; its σ is not carried into the estimates' uncertainty"
                     } else {
-                        "within 3σ of none, so the maps were fitted again without a lens"
+                        "within 3σ of none, so the maps were fitted again without a lens; each map parameter's σ\n\
+                         #   takes in how far a lens fitted moves it, and goes into the estimates' uncertainty"
                     },
                 );
             }
