@@ -156,6 +156,24 @@ fn one_view_gives_2d_results_flagged_as_such() {
     assert!((e - 0.9).abs() < 0.03, "2-D e {e}");
 }
 
+/// A shallow tube (15°): the spheres roll slowly, and hw-sim's 280-frame recording ends about
+/// 16 ms before they meet. The error says the impact is not in the recording, and which way
+/// to move it, not that a phase has too few frames (before session 48: "only 0 usable frame(s)
+/// of sphere a before the impact", even from the true centres).
+#[test]
+fn a_recording_that_ends_before_the_impact_says_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = run(tmp.path(), "[sim]\ntube_angle_deg = 15.0\n", &[]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no impact found") && err.contains("after the recording ends"),
+        "{err}"
+    );
+    let session = common::first_session(tmp.path());
+    assert!(!session.join("report.json").exists());
+}
+
 #[test]
 fn spheres_that_never_touch_are_no_impact_and_no_report() {
     let tmp = tempfile::tempdir().unwrap();

@@ -335,6 +335,27 @@ pub(super) fn closest_approach(
     views: &[View],
     primary: usize,
 ) -> Option<(f64, f64)> {
+    let closest_3d = separations_mm(obs, views)
+        .into_iter()
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    if closest_3d.is_some() {
+        return closest_3d;
+    }
+    let mut closest: Option<(f64, f64)> = None;
+    for f in obs {
+        if let (Some(a), Some(b)) = (&f.spheres[0][primary], &f.spheres[1][primary]) {
+            let d = (a.centre_px[0] - b.centre_px[0]).hypot(a.centre_px[1] - b.centre_px[1]);
+            if closest.is_none_or(|(_, dd)| d < dd) {
+                closest = Some((f.time_s, d));
+            }
+        }
+    }
+    closest
+}
+
+/// (time, separation of the centres, mm) of every frame where both views see both spheres, in
+/// the frames' order.
+pub(super) fn separations_mm(obs: &[FrameObs], views: &[View]) -> Vec<(f64, f64)> {
     let separation_mm = |f: &FrameObs| -> Option<f64> {
         if views.len() < 2 {
             return None;
@@ -357,23 +378,9 @@ pub(super) fn closest_approach(
                 .sqrt(),
         )
     };
-    let closest_3d = obs
-        .iter()
+    obs.iter()
         .filter_map(|f| Some((f.time_s, separation_mm(f)?)))
-        .min_by(|a, b| a.1.total_cmp(&b.1));
-    if closest_3d.is_some() {
-        return closest_3d;
-    }
-    let mut closest: Option<(f64, f64)> = None;
-    for f in obs {
-        if let (Some(a), Some(b)) = (&f.spheres[0][primary], &f.spheres[1][primary]) {
-            let d = (a.centre_px[0] - b.centre_px[0]).hypot(a.centre_px[1] - b.centre_px[1]);
-            if closest.is_none_or(|(_, dd)| d < dd) {
-                closest = Some((f.time_s, d));
-            }
-        }
-    }
-    closest
+        .collect()
 }
 
 /// Whether the primary view saw a sphere in fewer than `MIN_PRIMARY_FRAMES` frames of one of

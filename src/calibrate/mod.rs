@@ -470,7 +470,7 @@ pub fn calibrate(
     };
     let roll_deg = Fitted {
         value: au.atan2(av).to_degrees(),
-        sigma: (sa / a_norm).to_degrees(),
+        sigma: (sa / a_norm).to_degrees() * scatter,
     };
     let scale_from_diameter = diameter_scale(obs, di, diam)
         .ok_or_else(|| data("no sphere diameter measured in the direct view".into()))?;
@@ -578,14 +578,16 @@ pub fn calibrate(
         value: scale_from_diameter.value * at_origin,
         sigma: scale_from_diameter.sigma * at_origin,
     };
-    // The flights' scale knows no better than their accelerations' scatter lets it.
+    // The flights' scale and gravity's direction know no better than their accelerations'
+    // scatter lets them.
     let scale_from_flights = Fitted {
         value: bundle.direct_scale.value,
         sigma: bundle.direct_scale.sigma * scatter,
     };
+    let mut bundle = bundle;
+    bundle.direct_roll.sigma *= scatter;
     let (scale, diameter_disagrees_sigma) = combine_scales(scale_from_flights, scale_from_diameter);
     let k = scale.value / bundle.direct_scale.value;
-    let mut bundle = bundle;
     for kappa in &mut bundle.kappa {
         kappa.value *= k;
         kappa.sigma *= k;

@@ -138,6 +138,34 @@ fn impact_split(
     };
     let min_side = set.min_side;
     let contact_mm = set.contact_mm;
+    // Closest in the first or the last frame where both views see both spheres, and far from
+    // touching there: the recording does not hold the impact. Said so, rather than as a phase
+    // with too few frames (a shallow tube's spheres roll slowly, and a 280-frame recording of
+    // a 15° tube on hw-sim ended 16 ms before they met, 18 mm apart: "only 0 usable frame(s)
+    // of sphere a before the impact").
+    let seen = phases::separations_mm(obs, views);
+    if let (Some(&(t, d)), Some(first), Some(last)) = (
+        seen.iter().min_by(|a, b| a.1.total_cmp(&b.1)),
+        seen.first(),
+        seen.last(),
+    ) {
+        if d > 1.5 * contact_mm && (t == last.0 || t == first.0) {
+            let (which, what) = if t == last.0 {
+                (
+                    "last",
+                    "the impact comes after the recording ends (record longer, or trigger later)",
+                )
+            } else {
+                (
+                    "first",
+                    "the impact came before the recording began (trigger earlier)",
+                )
+            };
+            return Err(no_impact(format!(
+                "the spheres are closest in the {which} frame where both views see both (t = {t:.4} s), {d:.1} mm apart (contact at {contact_mm:.2} mm): {what}"
+            )));
+        }
+    }
     for _ in 0..8 {
         let fits = set.fits_at(obs, views, split);
         for (k, side) in fits.iter().enumerate() {
