@@ -250,8 +250,10 @@ fn shorthand_of(g: &ViewGeometry) -> Option<ViewGeometry> {
 }
 
 /// e, ψ1, ψ2 against the truth (error, error / σ) with the maps `calibrate` finds on the
-/// recording itself, started from the shorthand.
-fn with_calibrate(dir: &Path) -> Result<Vec<(f64, f64)>, String> {
+/// recording itself, started from the shorthand; and every velocity and spin component's
+/// error / σ with those maps (what a turn or scale the maps get wrong shows in, and e and ψ
+/// do not).
+fn with_calibrate(dir: &Path) -> Result<(Vec<(f64, f64)>, Vec<f64>), String> {
     let cal = read_json(&dir.join("calibration.json"))?;
     let truth = read_json(&dir.join("truth.json"))?;
     let mut cfg = config_from_calibration(&cal)?;
@@ -264,7 +266,7 @@ fn with_calibrate(dir: &Path) -> Result<Vec<(f64, f64)>, String> {
     let report = crate::experiment::analyze_path(&tiff, Some(&cfg), &mut |_, _| {})
         .map_err(|e| format!("no result: {e}"))?;
     let imp = &truth["impact"];
-    Ok([
+    let scalars = [
         (&report.e, "e_effective"),
         (&report.psi1, "psi1"),
         (&report.psi2, "psi2"),
@@ -274,7 +276,27 @@ fn with_calibrate(dir: &Path) -> Result<Vec<(f64, f64)>, String> {
         (Some(e), Some(t)) => (e.value - t, (e.value - t) / e.uncertainty.max(1e-300)),
         _ => (f64::NAN, f64::NAN),
     })
-    .collect())
+    .collect();
+    let mut components = Vec::new();
+    for (s, got) in [("a", &report.spheres.a), ("b", &report.spheres.b)] {
+        let vectors = [
+            ("pre", "velocity_mps", 1e3, Some(&got.velocity_pre_mm_s)),
+            ("post", "velocity_mps", 1e3, Some(&got.velocity_post_mm_s)),
+            ("pre", "spin_radps", 1.0, got.spin_pre_rad_s.as_ref()),
+            ("post", "spin_radps", 1.0, got.spin_post_rad_s.as_ref()),
+        ];
+        for (phase, field, unit, v) in vectors {
+            let Some(v) = v else { continue };
+            for k in 0..3 {
+                if let Some(w) = num(&imp[phase][s][field][k]) {
+                    if v.uncertainty[k] > 0.0 {
+                        components.push((v.value[k] - w * unit) / v.uncertainty[k]);
+                    }
+                }
+            }
+        }
+    }
+    Ok((scalars, components))
 }
 
 /// The comparison over every recording (a folder holding `truth.json`) under `dir`.
@@ -376,13 +398,15 @@ pub fn validation(dir: &Path) -> Result<String, String> {
         "{:<6} {:>16} {:>16} {:>16}",
         "", "Δe (z)", "Δψ1 (z)", "Δψ2 (z)"
     );
+    let mut calibrated_components: Vec<f64> = Vec::new();
     for p in &sessions {
         let name = p
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
         match with_calibrate(p) {
-            Ok(v) => {
+            Ok((v, components)) => {
+                calibrated_components.extend(components);
                 let cell = |(e, z): (f64, f64)| {
                     if e.is_finite() {
                         format!("{e:+.4} ({z:+.1})")
@@ -403,6 +427,19 @@ pub fn validation(dir: &Path) -> Result<String, String> {
             }
         }
     }
+    let within = |zs: &[f64], k: f64| zs.iter().filter(|z| z.abs() <= k).count();
+    let _ = writeln!(
+        out,
+        "with those maps, of {} velocity and spin components with a σ: {:.0} % within ±1σ, {} beyond 3σ, {} beyond 5σ",
+        calibrated_components.len(),
+        if calibrated_components.is_empty() {
+            f64::NAN
+        } else {
+            100.0 * within(&calibrated_components, 1.0) as f64 / calibrated_components.len() as f64
+        },
+        calibrated_components.len() - within(&calibrated_components, 3.0),
+        calibrated_components.len() - within(&calibrated_components, 5.0),
+    );
     let analysed = rows.iter().filter(|r| r.outcome.is_ok()).count();
     let covered = all_z.iter().filter(|z| z.abs() <= 1.0).count();
     let beyond5 = all_z.iter().filter(|z| z.abs() > 5.0).count();
