@@ -162,33 +162,33 @@ fn one_view_gives_2d_results_flagged_as_such() {
 /// of sphere a before the impact", even from the true centres).
 #[test]
 fn a_recording_that_ends_before_the_impact_says_so() {
-    let tmp = tempfile::tempdir().unwrap();
-    let out = run(tmp.path(), "[sim]\ntube_angle_deg = 15.0\n", &[]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = failed_without_a_report("[sim]\ntube_angle_deg = 15.0\n");
     assert!(
         err.contains("no impact found") && err.contains("after the recording ends"),
         "{err}"
     );
+}
+
+/// Runs one experiment with `toml`, which must fail and leave no report: its stderr.
+fn failed_without_a_report(toml: &str) -> String {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = run(tmp.path(), toml, &[]);
+    assert!(!out.status.success());
     let session = common::first_session(tmp.path());
     assert!(!session.join("report.json").exists());
+    String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
 #[test]
 fn spheres_that_never_touch_are_no_impact_and_no_report() {
-    let tmp = tempfile::tempdir().unwrap();
     // An impact parameter of 1.6 contact distances: they fly past each other.
-    let out = run(tmp.path(), "[sim]\nimpact_offset = 1.6\n", &[]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = failed_without_a_report("[sim]\nimpact_offset = 1.6\n");
     assert!(err.contains("no impact found"), "{err}");
     assert_eq!(
         err.trim().lines().last().map(|l| l.starts_with("error:")),
         Some(true),
         "{err}"
     );
-    let session = common::first_session(tmp.path());
-    assert!(!session.join("report.json").exists());
 }
 
 #[test]

@@ -32,6 +32,18 @@ fn analyze_with(dir: &Path, session: &Path, config: &str, out: &str) -> Value {
     )
 }
 
+/// `impactcam calibrate INPUT ARGS… --out cal.toml` in `dir`, which must succeed: what it
+/// wrote to cal.toml.
+fn calibrate_to_cal_toml(dir: &Path, input: &Path, args: &[&str]) -> String {
+    let input = input.to_str().unwrap();
+    let out = common::impactcam(
+        dir,
+        &[&["calibrate", input], args, &["--out", "cal.toml"]].concat(),
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    std::fs::read_to_string(dir.join("cal.toml")).unwrap()
+}
+
 fn warnings(report: &Value) -> Vec<String> {
     report["quality"]["warnings"]
         .as_array()
@@ -219,17 +231,12 @@ fn the_shorthand_on_a_turned_rig_warns_and_calibrate_finds_its_maps() {
     // default regions): its maps give e within 0.01 and ψ1, ψ2 within 0.05 of the truth, and
     // the warnings are gone.
     let session = common::first_session(t.path());
-    let out = common::impactcam(
-        t.path(),
-        &["calibrate", session.to_str().unwrap(), "--out", "cal.toml"],
-    );
-    assert!(out.status.success(), "{}", common::stderr(&out));
+    let cal = calibrate_to_cal_toml(t.path(), &session, &[]);
     let png = std::fs::read(t.path().join("cal.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG", "the figure is a PNG");
     let calibrated = analyze_with(t.path(), &session, "cal.toml", "again");
     // calibrate says how well it knows each map, and the analysis carries that into every σ:
     // σ(e)² is the σ(e)² of the same maps taken as exact plus each parameter's change of e.
-    let cal = std::fs::read_to_string(t.path().join("cal.toml")).unwrap();
     let keys = ["px_per_mm_uncertainty_percent", "turn_uncertainty_deg"];
     for key in keys {
         let given = cal.lines().filter(|l| l.starts_with(key)).count();
@@ -451,12 +458,7 @@ fn a_lens_in_the_config_takes_out_the_bias_it_leaves_and_calibrate_finds_it() {
     // keeps one (it did on eight recordings of eight in session 36, k1 −0.022 to −0.044 with σ
     // 0.0025, whole discs only; −0.001 to −0.034 before), a barrel lens in both views; its maps
     // give e within 0.015 and 5σ (0.0038 at most on those eight, 0.0106 before).
-    let out = common::impactcam(
-        t.path(),
-        &["calibrate", session.to_str().unwrap(), "--out", "cal.toml"],
-    );
-    assert!(out.status.success(), "{}", common::stderr(&out));
-    let cal = std::fs::read_to_string(t.path().join("cal.toml")).unwrap();
+    let cal = calibrate_to_cal_toml(t.path(), &session, &[]);
     let k1: Vec<f64> = cal
         .lines()
         .filter_map(|l| l.strip_prefix("lens_k1 = "))
@@ -633,12 +635,7 @@ fn a_camera_that_flips_its_image_is_said_by_image_mirrored_or_found_by_its_marke
     check(&unsaid, &truth, "psi2", bound, rig);
     // calibrate, from the session's own (said) config, fits the flipped direct view as flipped
     // and keeps the key.
-    let out = common::impactcam(
-        t.path(),
-        &["calibrate", session.to_str().unwrap(), "--out", "cal.toml"],
-    );
-    assert!(out.status.success(), "{}", common::stderr(&out));
-    let cal = std::fs::read_to_string(t.path().join("cal.toml")).unwrap();
+    let cal = calibrate_to_cal_toml(t.path(), &session, &[]);
     for line in ["image_mirrored = true", "image_mirrored = false"] {
         assert!(cal.lines().any(|l| l == line), "{line}:\n{cal}");
     }
@@ -742,19 +739,11 @@ fn a_camera_turned_on_its_side_is_measured_and_calibrated_as_upright() {
         check(report, &truth, "psi1", 0.1, rig);
         check(report, &truth, "psi2", 0.1, rig);
     }
-    let out = common::impactcam(
+    let cal = calibrate_to_cal_toml(
         t.path(),
-        &[
-            "calibrate",
-            "turned.tif",
-            "--config",
-            "turned.toml",
-            "--out",
-            "cal.toml",
-        ],
+        Path::new("turned.tif"),
+        &["--config", "turned.toml"],
     );
-    assert!(out.status.success(), "{}", common::stderr(&out));
-    let cal = std::fs::read_to_string(t.path().join("cal.toml")).unwrap();
     assert!(
         cal.contains("region = [0, 0, 96, 240]") && cal.contains("region = [96, 0, 96, 240]"),
         "the side-by-side regions kept:\n{cal}"
@@ -791,11 +780,7 @@ fn a_yawed_direct_camera_is_covered_by_the_calibrated_velocities_sigma() {
     let t = tempfile::tempdir().unwrap();
     let (_, truth) = run(t.path(), "[sim]\nseed = 27\ndirect_yaw_deg = 1.5\n");
     let session = common::first_session(t.path());
-    let out = common::impactcam(
-        t.path(),
-        &["calibrate", session.to_str().unwrap(), "--out", "cal.toml"],
-    );
-    assert!(out.status.success(), "{}", common::stderr(&out));
+    calibrate_to_cal_toml(t.path(), &session, &[]);
     let report = analyze_with(t.path(), &session, "cal.toml", "cal");
     let mut worst: f64 = 0.0;
     for s in ["a", "b"] {

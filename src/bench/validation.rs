@@ -162,30 +162,8 @@ fn compare(dir: &Path) -> Result<Figures, String> {
     est("psi1", &report["psi1"], num(&imp["psi1"]));
     est("psi2", &report["psi2"], num(&imp["psi2"]));
     est("beta", &report["beta"], num(&imp["beta_effective"]));
-    for s in ["a", "b"] {
-        for (phase, key, unit) in [
-            ("pre", "velocity_pre_mm_s", 1e3),
-            ("post", "velocity_post_mm_s", 1e3),
-            ("pre", "spin_pre_rad_s", 1.0),
-            ("post", "spin_post_rad_s", 1.0),
-        ] {
-            let field = if key.starts_with("velocity") {
-                "velocity_mps"
-            } else {
-                "spin_radps"
-            };
-            let got = &report["spheres"][s][key];
-            for (k, axis) in ["x", "y", "z"].iter().enumerate() {
-                // A 2-D result reports the axis it could not measure as 0 ± 0 (its warning
-                // says so): nothing to compare.
-                if report["dimensionality"] == "2d" && num(&got["uncertainty"][k]) == Some(0.0) {
-                    continue;
-                }
-                let want = num(&imp[phase][s][field][k]).map(|w| w * unit);
-                let one = serde_json::json!({"value": got["value"][k], "uncertainty": got["uncertainty"][k]});
-                est(&format!("{s} {key} {axis}"), &one, want);
-            }
-        }
+    for (name, one, want) in vector_components(&report, imp) {
+        est(&name, &one, want);
     }
     // Centres, per frame and view, against centres.csv.
     let csv = std::fs::read_to_string(dir.join("centres.csv")).map_err(|e| e.to_string())?;
@@ -223,6 +201,38 @@ fn compare(dir: &Path) -> Result<Figures, String> {
     Ok(f)
 }
 
+/// Every velocity and spin component of a report (JSON) beside the truth's `impact`: its name,
+/// {value, uncertainty}, and the true value in the report's units.
+fn vector_components(report: &Value, imp: &Value) -> Vec<(String, Value, Option<f64>)> {
+    let mut out = Vec::new();
+    for s in ["a", "b"] {
+        for (phase, key, unit) in [
+            ("pre", "velocity_pre_mm_s", 1e3),
+            ("post", "velocity_post_mm_s", 1e3),
+            ("pre", "spin_pre_rad_s", 1.0),
+            ("post", "spin_post_rad_s", 1.0),
+        ] {
+            let field = if key.starts_with("velocity") {
+                "velocity_mps"
+            } else {
+                "spin_radps"
+            };
+            let got = &report["spheres"][s][key];
+            for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+                // A 2-D result reports the axis it could not measure as 0 ± 0 (its warning
+                // says so): nothing to compare.
+                if report["dimensionality"] == "2d" && num(&got["uncertainty"][k]) == Some(0.0) {
+                    continue;
+                }
+                let want = num(&imp[phase][s][field][k]).map(|w| w * unit);
+                let one = serde_json::json!({"value": got["value"][k], "uncertainty": got["uncertainty"][k]});
+                out.push((format!("{s} {key} {axis}"), one, want));
+            }
+        }
+    }
+    out
+}
+
 /// The shorthand an experimenter would type for a view (each image axis the world axis it is
 /// nearest, the scale of its rows), whether or not it describes the view: where `calibrate`
 /// starts from.
@@ -249,11 +259,18 @@ fn shorthand_of(g: &ViewGeometry) -> Option<ViewGeometry> {
     })
 }
 
+/// What `with_calibrate` gives: e, ψ1, ψ2 as (error, error / σ), and every velocity and spin
+/// component's error / σ.
+struct WithCalibrate {
+    scalars: Vec<(f64, f64)>,
+    components: Vec<f64>,
+}
+
 /// e, ψ1, ψ2 against the truth (error, error / σ) with the maps `calibrate` finds on the
 /// recording itself, started from the shorthand; and every velocity and spin component's
 /// error / σ with those maps (what a turn or scale the maps get wrong shows in, and e and ψ
 /// do not).
-fn with_calibrate(dir: &Path) -> Result<(Vec<(f64, f64)>, Vec<f64>), String> {
+fn with_calibrate(dir: &Path) -> Result<WithCalibrate, String> {
     let cal = read_json(&dir.join("calibration.json"))?;
     let truth = read_json(&dir.join("truth.json"))?;
     let mut cfg = config_from_calibration(&cal)?;
@@ -277,26 +294,18 @@ fn with_calibrate(dir: &Path) -> Result<(Vec<(f64, f64)>, Vec<f64>), String> {
         _ => (f64::NAN, f64::NAN),
     })
     .collect();
-    let mut components = Vec::new();
-    for (s, got) in [("a", &report.spheres.a), ("b", &report.spheres.b)] {
-        let vectors = [
-            ("pre", "velocity_mps", 1e3, Some(&got.velocity_pre_mm_s)),
-            ("post", "velocity_mps", 1e3, Some(&got.velocity_post_mm_s)),
-            ("pre", "spin_radps", 1.0, got.spin_pre_rad_s.as_ref()),
-            ("post", "spin_radps", 1.0, got.spin_post_rad_s.as_ref()),
-        ];
-        for (phase, field, unit, v) in vectors {
-            let Some(v) = v else { continue };
-            for k in 0..3 {
-                if let Some(w) = num(&imp[phase][s][field][k]) {
-                    if v.uncertainty[k] > 0.0 {
-                        components.push((v.value[k] - w * unit) / v.uncertainty[k]);
-                    }
-                }
-            }
-        }
-    }
-    Ok((scalars, components))
+    let json = serde_json::to_value(&report).map_err(|e| e.to_string())?;
+    let components = vector_components(&json, imp)
+        .into_iter()
+        .filter_map(|(_, got, want)| {
+            let (v, s, w) = (num(&got["value"])?, num(&got["uncertainty"])?, want?);
+            (s > 0.0).then(|| (v - w) / s)
+        })
+        .collect();
+    Ok(WithCalibrate {
+        scalars,
+        components,
+    })
 }
 
 /// The comparison over every recording (a folder holding `truth.json`) under `dir`.
@@ -405,7 +414,10 @@ pub fn validation(dir: &Path) -> Result<String, String> {
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
         match with_calibrate(p) {
-            Ok((v, components)) => {
+            Ok(WithCalibrate {
+                scalars: v,
+                components,
+            }) => {
                 calibrated_components.extend(components);
                 let cell = |(e, z): (f64, f64)| {
                     if e.is_finite() {

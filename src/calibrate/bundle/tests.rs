@@ -69,6 +69,37 @@ fn flights_through_at(
     (obs, phases)
 }
 
+/// `fit_bundle` on the direct view (index 0) and the mirror (1) under `G`, from the start
+/// (direct scale, roll) and the mirror's provisional map: every test's call but for these.
+#[allow(clippy::too_many_arguments)]
+fn fit_two_views(
+    obs: &[FrameObs],
+    phases: &[Vec<usize>],
+    origin_direct: [f64; 2],
+    start: (f64, f64),
+    provisional: &View,
+    [direct, mirror]: [&View; 2],
+    lens: Option<LensFrame>,
+    lens_k1_held: Option<f64>,
+    perspective: [bool; 2],
+) -> Bundle {
+    fit_bundle(
+        obs,
+        phases,
+        G,
+        0,
+        Some(1),
+        origin_direct,
+        start,
+        Some(provisional),
+        lens,
+        lens_k1_held,
+        perspective,
+        &[direct.clone(), mirror.clone()],
+    )
+    .unwrap()
+}
+
 fn within(name: &str, f: Fitted, truth: f64) {
     assert!(
         f.sigma > 0.0 && (f.value - truth).abs() <= 4.0 * f.sigma,
@@ -114,21 +145,17 @@ fn the_bundle_finds_a_turned_rig_within_its_uncertainty() {
             ViewKind::Mirror,
             &ViewGeometry::shorthand([0, 96, 240, 96], 2.08, om, "+x", "+z"),
         );
-        let b = fit_bundle(
+        let b = fit_two_views(
             &obs,
             &phases,
-            G,
-            0,
-            Some(1),
             od,
             (2.11, 0.0),
-            Some(&provisional),
+            &provisional,
+            [&direct, &mirror],
             None,
             None,
             [true; 2],
-            &[direct.clone(), mirror.clone()],
-        )
-        .unwrap();
+        );
         let m = b.mirror.unwrap();
         let deg = |x: f64| x.to_degrees();
         within("direct scale", b.direct_scale, 2.1576);
@@ -186,21 +213,17 @@ fn the_bundle_finds_a_rig_turned_on_its_side() {
         &ViewGeometry::shorthand([96, 0, 96, 240], 2.08, om, "+z", "-x"),
     );
     assert_eq!(MirrorAxes::of(&provisional), axes);
-    let b = fit_bundle(
+    let b = fit_two_views(
         &obs,
         &phases,
-        G,
-        0,
-        Some(1),
         od,
         (2.11, 90f64.to_radians()),
-        Some(&provisional),
+        &provisional,
+        [&direct, &mirror],
         None,
         None,
         [true; 2],
-        &[direct.clone(), mirror.clone()],
-    )
-    .unwrap();
+    );
     let m = b.mirror.unwrap();
     let deg = |x: f64| x.to_degrees();
     within("direct scale", b.direct_scale, 2.1576);
@@ -244,21 +267,17 @@ fn the_bundle_says_how_deep_the_flights_were() {
     let facing_mirror = facing_of(&mm, ViewKind::Mirror);
     for (offset, seed) in [(V3::new(0.0, 3.0, 12.0), 7), (V3::new(2.0, -4.0, -9.0), 8)] {
         let (obs, phases) = flights_through_at([&direct, &mirror], 0.02, seed, offset);
-        let b = fit_bundle(
+        let b = fit_two_views(
             &obs,
             &phases,
-            G,
-            0,
-            Some(1),
             od,
             (2.1576, 0.0),
-            Some(&mirror),
+            &mirror,
+            [&direct, &mirror],
             None,
             None,
             [true; 2],
-            &[direct.clone(), mirror.clone()],
-        )
-        .unwrap();
+        );
         // The four flights' centres average to (0, −0.5, 0) mm over their frames (their
         // starts; symmetric in time about their mean), less gravity's mean drop in y.
         let drop = -0.5
@@ -324,21 +343,17 @@ fn the_bundle_finds_the_lens_the_flights_were_seen_through() {
             &ViewGeometry::shorthand([0, 96, 240, 96], 2.1175, om, "+x", "+z"),
         );
         let fit_held = |lens, held| {
-            fit_bundle(
+            fit_two_views(
                 &obs,
                 &phases,
-                G,
-                0,
-                Some(1),
                 od,
                 (2.15, 0.0),
-                Some(&provisional),
+                &provisional,
+                [&direct, &mirror],
                 lens,
                 held,
                 [true; 2],
-                &[direct.clone(), mirror.clone()],
             )
-            .unwrap()
         };
         let fit = |lens| fit_held(lens, None);
         // Held at the true k1 (as a dot grid gives it), the maps come out right too.
@@ -388,21 +403,17 @@ fn a_camera_held_orthographic_keeps_its_distance_unfitted() {
     let (od, direct, mirror, _) = thesis_rig(none);
     let (obs, phases) = flights_through_at([&direct, &mirror], 0.05, 11, V3::new(0.0, 0.0, 10.0));
     let fit = |perspective: [bool; 2]| {
-        fit_bundle(
+        fit_two_views(
             &obs,
             &phases,
-            G,
-            0,
-            Some(1),
             od,
             (2.1576, 0.0),
-            Some(&mirror),
+            &mirror,
+            [&direct, &mirror],
             None,
             None,
             perspective,
-            &[direct.clone(), mirror.clone()],
         )
-        .unwrap()
     };
     let (free, held) = (fit([true; 2]), fit([false, true]));
     assert!(
