@@ -9,7 +9,9 @@
 //! allocates only what one frame needs (at most `MAX_SIDE_PX`² pixels of two bytes).
 //! Frames come out as the analysis and sessions take them: one or two bytes per pixel,
 //! little-endian, top row first; footage with fewer significant bits than its container
-//! (12-bit) is scaled to the container's full range, and `FileInfo::notes` says so.
+//! (12-bit) is scaled to the container's full range, and `FileInfo::notes` says so: where the
+//! header says so (MRAW, CINE), and in the formats that cannot say it (TIFF, PNG, FMF) where
+//! no pixel of the whole file reaches the top of a 10-, 12- or 14-bit range (`LowBits`).
 
 pub mod cine;
 pub mod fmf;
@@ -96,18 +98,29 @@ pub trait FrameFile: Send {
     fn read(&mut self, i: usize, buf: &mut Vec<u8>) -> Result<(), FootageError>;
 }
 
+/// One greyscale image file (PNG, BMP, or a one-page TIFF) into `buf`, little-endian: (width,
+/// height, bytes per pixel). That file alone, even where its name is numbered like a sequence's.
+/// A 16-bit image whose pixels stay within a 10-, 12- or 14-bit range is scaled to the 16-bit
+/// range (`LowBits`).
+pub fn read_image(path: &Path, buf: &mut Vec<u8>) -> Result<(u32, u32, usize), FootageError> {
+    let (w, h, bpp) = sequence::decode(path, buf)?;
+    if bpp == 2 {
+        if let Some(bits) = low_depth(max_le16(buf)) {
+            widen_le16(buf, bits);
+        }
+    }
+    Ok((w, h, bpp))
+}
+
 /// Opens footage by its content: a directory of numbered images, a `%d` pattern, a Photron
 /// header (.cih/.cihx) or the .mraw beside one, a CINE, an FMF, a TIFF stack, or one image of
 /// a numbered sequence. `frame_rate_hz` is used where the file has no rate of its own.
-/// One greyscale image file (PNG, BMP, or a one-page TIFF) into `buf`, little-endian: (width,
-/// height, bytes per pixel). That file alone, even where its name is numbered like a sequence's.
-pub fn read_image(path: &Path, buf: &mut Vec<u8>) -> Result<(u32, u32, usize), FootageError> {
-    sequence::decode(path, buf)
-}
-
 pub fn open(path: &Path, frame_rate_hz: Option<f64>) -> Result<Box<dyn FrameFile>, FootageError> {
     if path.is_dir() || sequence::is_pattern(path) {
-        return Ok(Box::new(sequence::Sequence::open(path, frame_rate_hz)?));
+        return LowBits::wrap(
+            path,
+            Box::new(sequence::Sequence::open(path, frame_rate_hz)?),
+        );
     }
     let mut head = [0u8; 4096];
     let n = {
@@ -122,18 +135,24 @@ pub fn open(path: &Path, frame_rate_hz: Option<f64>) -> Result<Box<dyn FrameFile
         return Ok(Box::new(cine::Cine::open(path)?));
     }
     if fmf::is_fmf(head) {
-        return Ok(Box::new(fmf::Fmf::open(path, frame_rate_hz)?));
+        return LowBits::wrap(path, Box::new(fmf::Fmf::open(path, frame_rate_hz)?));
     }
     if head.starts_with(b"II*\0") || head.starts_with(b"MM\0*") {
         let stack = tiff_stack::TiffStack::open(path, frame_rate_hz)?;
         // One page: a frame of a numbered sequence, when its name is numbered.
         if stack.len() == 1 && sequence::numbered(path).is_some() {
-            return Ok(Box::new(sequence::Sequence::open(path, frame_rate_hz)?));
+            return LowBits::wrap(
+                path,
+                Box::new(sequence::Sequence::open(path, frame_rate_hz)?),
+            );
         }
-        return Ok(Box::new(stack));
+        return LowBits::wrap(path, Box::new(stack));
     }
     if head.starts_with(b"\x89PNG") || head.starts_with(b"BM") {
-        return Ok(Box::new(sequence::Sequence::open(path, frame_rate_hz)?));
+        return LowBits::wrap(
+            path,
+            Box::new(sequence::Sequence::open(path, frame_rate_hz)?),
+        );
     }
     // A .mraw has no signature of its own: it is known by its header beside it (and said to
     // lack one by its name).
@@ -284,7 +303,93 @@ pub(crate) fn widen_le16(buf: &mut [u8], bits: u32) {
     let shift = 16 - bits;
     for c in buf.chunks_exact_mut(2) {
         let v = u16::from_le_bytes([c[0], c[1]]);
-        c.copy_from_slice(&(v << shift).to_le_bytes());
+        // A sample beyond the stated bits (a header that understates them) is the top of the
+        // range, not wrapped round to a dark level.
+        let wide = if u32::from(v) >> bits == 0 {
+            v << shift
+        } else {
+            u16::MAX
+        };
+        c.copy_from_slice(&wide.to_le_bytes());
+    }
+}
+
+/// The camera depths a 16-bit container holds in its low bits, shallowest first.
+const LOW_DEPTHS: [u32; 3] = [10, 12, 14];
+
+/// The shallowest of `LOW_DEPTHS` whose range holds `max`, if any.
+fn low_depth(max: u16) -> Option<u32> {
+    LOW_DEPTHS.into_iter().find(|&b| u32::from(max) < 1 << b)
+}
+
+/// The largest sample of 16-bit little-endian pixels.
+fn max_le16(buf: &[u8]) -> u16 {
+    buf.chunks_exact(2)
+        .map(|c| u16::from_le_bytes([c[0], c[1]]))
+        .max()
+        .unwrap_or(0)
+}
+
+/// 16-bit footage from a format that cannot state its significant bits (TIFF, PNG, FMF) whose
+/// pixels never reach the top of a 10-, 12- or 14-bit range: a 12-bit camera's frames exported
+/// as they are, which most camera software does. Scaled to the 16-bit range as a 12-bit MRAW
+/// is, and the notes say so. Why: the analysis works on the 8-bit scale (`GreyImage::load`
+/// divides 16-bit levels by 256), where a 12-bit camera's frames would span 16 grey levels with
+/// a noise of an eighth of one, below the floors its tests keep against an 8-bit camera's
+/// quantisation; on the independent renders made 12-bit so, the two backlit ones lost their
+/// spins (docs/accuracy.md, session 49). A recording whose every pixel is that dark on a true
+/// 16-bit camera is only made brighter, losslessly.
+struct LowBits {
+    inner: Box<dyn FrameFile>,
+    info: FileInfo,
+    bits: u32,
+}
+
+impl LowBits {
+    /// `file` as it is, unless it is 16-bit and no pixel of any frame reaches 2¹⁴ (the scan stops
+    /// at the first that does: a true 16-bit recording usually costs one frame's read).
+    fn wrap(path: &Path, mut file: Box<dyn FrameFile>) -> Result<Box<dyn FrameFile>, FootageError> {
+        if file.info().bytes_per_pixel != 2 {
+            return Ok(file);
+        }
+        let mut buf = Vec::new();
+        let mut max = 0u16;
+        for i in 0..file.len() {
+            file.read(i, &mut buf)?;
+            max = max.max(max_le16(&buf));
+            if low_depth(max).is_none() {
+                return Ok(file);
+            }
+        }
+        let Some(bits) = low_depth(max) else {
+            return Ok(file);
+        };
+        let mut info = file.info().clone();
+        info.notes.push(format!(
+            "{}: no pixel reaches {} (the largest is {max}): taken as {bits}-bit pixels in 16 bits and scaled ×{} to the 16-bit range",
+            file_name(path),
+            1u32 << bits,
+            1u32 << (16 - bits)
+        ));
+        Ok(Box::new(LowBits {
+            inner: file,
+            info,
+            bits,
+        }))
+    }
+}
+
+impl FrameFile for LowBits {
+    fn info(&self) -> &FileInfo {
+        &self.info
+    }
+    fn frames(&self) -> &[FrameMeta] {
+        self.inner.frames()
+    }
+    fn read(&mut self, i: usize, buf: &mut Vec<u8>) -> Result<(), FootageError> {
+        self.inner.read(i, buf)?;
+        widen_le16(buf, self.bits);
+        Ok(())
     }
 }
 

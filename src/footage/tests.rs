@@ -131,7 +131,11 @@ fn cine_8_and_16_bit_read_back_top_row_first_with_times() {
 #[test]
 fn fmf_rows_in_pixels_or_bytes_and_nan_times() {
     let d = tempdir().unwrap();
-    let f: Vec<(f64, Vec<u8>)> = vec![(10.5, (0..16).collect()), (10.502, (16..32).collect())];
+    // (Levels up to 0xF8F0: a 16-bit camera's, which `LowBits` leaves as they are.)
+    let f: Vec<(f64, Vec<u8>)> = vec![
+        (10.5, (0..16).map(|b| b * 8).collect()),
+        (10.502, (16..32).map(|b| b * 8).collect()),
+    ];
     fmf::write(&d.path().join("a.fmf"), 4, 2, 2, &f).unwrap();
     let mut m = open(&d.path().join("a.fmf"), None).unwrap();
     assert_eq!((m.info().width, m.info().bytes_per_pixel), (4, 2));
@@ -285,4 +289,60 @@ fn the_committed_fuzz_seeds_open() {
         let mut f = open(&path, Some(1000.0)).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(!all_frames(f.as_mut()).is_empty(), "{name}");
     }
+}
+
+/// A 16-bit stack of `pages` pages of 4 × 2 pixels, page k holding `level(k)` everywhere.
+fn tiff16(path: &Path, pages: u16, level: impl Fn(u16) -> u16) {
+    use tiff::encoder::{colortype, TiffEncoder};
+    let mut enc = TiffEncoder::new(File::create(path).unwrap()).unwrap();
+    for k in 0..pages {
+        enc.write_image::<colortype::Gray16>(4, 2, &[level(k); 8])
+            .unwrap();
+    }
+}
+
+#[test]
+fn sixteen_bit_footage_that_stays_within_twelve_bits_is_scaled_as_twelve_bit() {
+    let d = tempdir().unwrap();
+    // A 12-bit camera's frames exported as they are: the brightest page 4000.
+    let p = d.path().join("twelve.tif");
+    tiff16(&p, 3, |k| [100, 4000, 2048][k as usize]);
+    let mut s = open(&p, Some(1000.0)).unwrap();
+    let frames = all_frames(s.as_mut());
+    let first = u16::from_le_bytes([frames[1][0], frames[1][1]]);
+    assert_eq!(first, 4000 * 16, "12 significant bits scaled ×16");
+    assert!(
+        s.info().notes.iter().any(|n| n.contains("taken as 12-bit")
+            && n.contains("the largest is 4000")
+            && n.contains("twelve.tif")),
+        "{:?}",
+        s.info().notes
+    );
+    // A true 16-bit recording (one page reaches 2¹⁴) is read as it is, with no note.
+    let p = d.path().join("sixteen.tif");
+    tiff16(&p, 3, |k| [100, 20_000, 2048][k as usize]);
+    let mut s = open(&p, Some(1000.0)).unwrap();
+    let frames = all_frames(s.as_mut());
+    assert_eq!(u16::from_le_bytes([frames[0][0], frames[0][1]]), 100);
+    assert!(s.info().notes.is_empty(), "{:?}", s.info().notes);
+    // One image (a dot grid's) by its own pixels: 10-bit.
+    let p = d.path().join("grid.tif");
+    tiff16(&p, 1, |_| 1000);
+    let mut buf = Vec::new();
+    assert_eq!(read_image(&p, &mut buf).unwrap(), (4, 2, 2));
+    assert_eq!(u16::from_le_bytes([buf[0], buf[1]]), 1000 * 64);
+}
+
+#[test]
+fn a_sample_beyond_the_stated_bits_is_the_top_of_the_range_not_wrapped() {
+    let mut buf: Vec<u8> = [4095u16, 4096, 1]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    widen_le16(&mut buf, 12);
+    let got: Vec<u16> = buf
+        .chunks_exact(2)
+        .map(|c| u16::from_le_bytes([c[0], c[1]]))
+        .collect();
+    assert_eq!(got, vec![4095 * 16, u16::MAX, 16]);
 }
