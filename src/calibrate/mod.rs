@@ -12,6 +12,9 @@
 //!   share and from free fall; each camera's distance where perspective shows;
 //! - one lens's radial distortion for both views, kept where the flights show it beyond 3σ.
 //!
+//! Each parameter is written with its σ, widened where the flights say it is known worse than
+//! their own fit claims (`sigma`).
+//!
 //! What the data cannot give is kept from the config: the world origin (the direct view's
 //! `origin_px`, and the mirror's v offset, which sets z = 0), the sign of z in the mirror (which
 //! side of the collision the mirror is on), and the views' layout (above each other or side by
@@ -28,14 +31,17 @@ mod maps;
 mod output;
 mod provisional;
 mod regions;
+mod sigma;
 
 use crate::analysis::tracking::FrameObs;
 use crate::analysis::{self, AnalysisError, FrameSource};
 use crate::config::Config;
-use bundle::{cut_by_border, fit_bundle, LensFrame};
-use flights::{diameter_scale, flights, parabola_acceleration};
+use bundle::{fit_bundle, LensFrame};
+use flights::{diameter_scale, flights, free_fall, FreeFall};
 use maps::{direct_matrix, distance, mirror_matrix, view_geometry, x_sign};
 use provisional::{align_mirror, line_fit, local_scale, set_scale, x_index, MirrorAxes};
+pub use sigma::SCALES_AGREE_SIGMA;
+use sigma::{combine_scales, degrees_known, percent_known, widened_by};
 
 /// A fitted parameter and its standard deviation.
 #[derive(Clone, Copy, Debug)]
@@ -226,25 +232,6 @@ fn whole_discs_only(mut obs: Vec<FrameObs>) -> Vec<FrameObs> {
     obs
 }
 
-/// A scale's σ, %, as the config accepts it: at most 20 (a fit that knows the scale worse, or
-/// not at all, says 20 rather than writing a config the analysis would refuse).
-fn percent_known(p: f64) -> f64 {
-    if p.is_finite() {
-        p.abs().min(20.0)
-    } else {
-        20.0
-    }
-}
-
-/// A turn's σ, deg, as the config accepts it: at most 10 (as `percent_known`).
-fn degrees_known(d: f64) -> f64 {
-    if d.is_finite() {
-        d.abs().min(10.0)
-    } else {
-        10.0
-    }
-}
-
 /// Fits the views' maps from one or more recordings of one rig (the first sets the
 /// provisional scale; the flights of all are fitted together).
 pub fn calibrate(
@@ -267,43 +254,11 @@ pub fn calibrate(
     }
     // The regions: the mirror's edge found in the frames; the config's regions are kept when
     // they keep each view's spheres whole and apart, and replaced by the found ones otherwise.
-    let (regions, cfg) = {
-        let found = regions::survey(src, cfg).map_err(|cause| CalibrateError::Provisional {
+    let (regions, cfg) =
+        regions::settle(src, cfg).map_err(|cause| CalibrateError::Provisional {
             source_name: name.clone(),
             cause,
         })?;
-        let typed: Vec<[u32; 4]> = [&cfg.geometry.direct, &cfg.geometry.mirror]
-            .into_iter()
-            .flatten()
-            .map(|v| v.region)
-            .collect();
-        let mut settled = cfg.clone();
-        let note = match &found.split {
-            Some(split) if found.separates(&typed) => {
-                format!("{}; the config's regions keep each view's spheres whole and apart, and are kept: {typed:?}", split.describe())
-            }
-            Some(split) => {
-                let (w, h) = src.dimensions();
-                let (d, m) = split.regions(w, h);
-                if let Some(v) = settled.geometry.direct.as_mut() {
-                    v.region = d;
-                }
-                let mirror = match settled.geometry.mirror.as_mut() {
-                    Some(v) => {
-                        v.region = m;
-                        format!("mirror {m:?}")
-                    }
-                    None => "the config has no [geometry.mirror] for the other side".into(),
-                };
-                format!(
-                    "{}; the config's regions cut through a view's spheres, so these are used: direct {d:?}, {mirror}",
-                    split.describe()
-                )
-            }
-            None => "the mirror's edge was not found (no two groups of spheres that share x); the config's regions are kept".into(),
-        };
-        (note, settled)
-    };
     let cfg = &cfg;
     let Some(direct_cfg) = cfg.geometry.direct.clone() else {
         return Err(CalibrateError::NoDirectView { source_name: name });
@@ -428,50 +383,16 @@ pub fn calibrate(
     let g = cfg.analysis.gravity_mm_s2;
     let diam = [cfg.spheres.sphere(0).0, cfg.spheres.sphere(1).0];
 
-    // Direct view: free fall per flight, pooled; whole discs only, as the bundle takes them
-    // (`cut_by_border`).
-    let mut acc = Vec::new();
-    for (k, frames) in phases.iter().enumerate() {
-        let pts: Vec<(f64, [f64; 2])> = frames
-            .iter()
-            .filter_map(|&i| {
-                let m = obs[i].spheres[k % 2][di].as_ref()?;
-                (!cut_by_border(&views[di], m)).then_some((obs[i].time_s, m.centre_px))
-            })
-            .collect();
-        if let Some(a) = parabola_acceleration(&pts) {
-            acc.push(a);
-        }
-    }
-    if acc.is_empty() {
-        return Err(data(
+    // Direct view: free fall per flight, pooled (whole discs only, as the bundle takes them).
+    let FreeFall {
+        scale: scale_from_free_fall,
+        roll_deg,
+        scatter,
+    } = free_fall(obs, views, &phases, di, g).ok_or_else(|| {
+        data(
             "no flight of 6 frames or more in the direct view: free fall cannot be measured".into(),
-        ));
-    }
-    let (mut w, mut au, mut av) = (0.0, 0.0, 0.0);
-    for (a, s) in &acc {
-        let wk = 1.0 / (s * s);
-        w += wk;
-        au += wk * a[0];
-        av += wk * a[1];
-    }
-    let (au, av, sa) = (au / w, av / w, w.recip().sqrt());
-    let a_norm = au.hypot(av);
-    // How much more the flights' accelerations scatter than their σ say (Birge's ratio, at
-    // least 1): a disc's centre errs alike from frame to frame as it crosses the light and the
-    // pixel grid, which a fit that takes its residuals for independent cannot see, and every
-    // scale from the flights' curvature carries it. On 72 hw-sim rigs drawn at random and
-    // calibrated (docs/accuracy.md, session 48) the flights' scale was within its σ on 50 %
-    // and beyond 3σ on 9, up to 6σ; the diameter's within its σ on 93 %, none beyond 2σ.
-    let scatter = scatter_ratio(&acc, [au, av]);
-    let scale_from_free_fall = Fitted {
-        value: a_norm / g,
-        sigma: sa / g * scatter,
-    };
-    let roll_deg = Fitted {
-        value: au.atan2(av).to_degrees(),
-        sigma: (sa / a_norm).to_degrees() * scatter,
-    };
+        )
+    })?;
     let scale_from_diameter = diameter_scale(obs, di, diam)
         .ok_or_else(|| data("no sphere diameter measured in the direct view".into()))?;
     let origin_direct = direct_cfg
@@ -698,220 +619,4 @@ pub fn calibrate(
         grid: grid_fit,
         geometry,
     })
-}
-
-/// `bundle` with each map parameter's σ widened by how far `other` (the same flights fitted
-/// under another model) puts it: σ² + Δ². Not the cameras' 1/distance, whose σ decided
-/// whether perspective shows and which the maps were written by.
-fn widened_by(mut bundle: bundle::Bundle, other: &bundle::Bundle) -> bundle::Bundle {
-    let widen = |f: &mut Fitted, o: Fitted| {
-        let d = f.value - o.value;
-        if d.is_finite() {
-            f.sigma = f.sigma.hypot(d);
-        }
-    };
-    widen(&mut bundle.direct_scale, other.direct_scale);
-    widen(&mut bundle.direct_roll, other.direct_roll);
-    if let (Some(m), Some(o)) = (bundle.mirror.as_mut(), other.mirror.as_ref()) {
-        widen(&mut m.scale, o.scale);
-        widen(&mut m.tilt_deg, o.tilt_deg);
-        widen(&mut m.roll_deg, o.roll_deg);
-        widen(&mut m.yaw_deg, o.yaw_deg);
-        widen(&mut m.origin_x_px, o.origin_x_px);
-    }
-    bundle
-}
-
-/// Birge's ratio of the flights' accelerations (u, v, px/s², each with its σ per component)
-/// about their weighted mean: √(χ²/dof), at least 1 (1 where there is only one).
-fn scatter_ratio(acc: &[([f64; 2], f64)], mean: [f64; 2]) -> f64 {
-    let chi2: f64 = acc
-        .iter()
-        .map(|(a, s)| ((a[0] - mean[0]).powi(2) + (a[1] - mean[1]).powi(2)) / (s * s))
-        .sum();
-    let dof = 2 * acc.len().saturating_sub(1);
-    if dof > 0 && chi2.is_finite() {
-        (chi2 / dof as f64).sqrt().max(1.0)
-    } else {
-        1.0
-    }
-}
-
-/// How far apart, in σ of their difference, the flights' and the diameter's scales may lie and
-/// still be weighed together.
-pub const SCALES_AGREE_SIGMA: f64 = 3.0;
-
-/// The direct view's scale from the flights (free fall, g known) and from the imaged diameter,
-/// weighed by their σ; where they disagree beyond `SCALES_AGREE_SIGMA`, the flights' alone
-/// (the diameter's rests on where the disc's model puts its edge, the flights' on g and the
-/// frame rate) and how far apart they were. Why both: free fall over the 20–40 frames of a
-/// short recording knows the scale to 0.4–2 %, the imaged diameter to 0.3–0.5 % (its σ,
-/// `flights::diameter_scale`), and a grazing impact's e moves by about ψ1·0.8 times a scale's
-/// error (the contact distance is a diameter in mm): on an independent render at ψ1 = 2.5 the
-/// flights' scale alone, 0.8 % off (1.1σ), put e 0.049 off.
-///
-/// The σ says how far apart the two were, not only their own σ: weighed, it is widened by
-/// their difference in σ where that is beyond 1 (the Particle Data Group's scale factor for
-/// two measurements); the flights' alone take the difference itself into their σ, since
-/// nothing here tells which of the two the look misled. Why: on 72 hw-sim rigs drawn at
-/// random and calibrated, a side-lit one's flights put the scale 3.8 % high where its diameter
-/// was right, a defocused one's 4.0 % with the diameter 2.1σ from them, and their velocities
-/// came out up to 6σ off (docs/accuracy.md, session 48).
-fn combine_scales(flights: Fitted, diameter: Fitted) -> (Fitted, Option<f64>) {
-    let z = (diameter.value - flights.value) / flights.sigma.hypot(diameter.sigma);
-    let usable = |f: Fitted| f.value.is_finite() && f.sigma.is_finite() && f.sigma > 0.0;
-    if !(usable(flights) && usable(diameter)) || z.is_nan() {
-        return (flights, None);
-    }
-    if z.abs() > SCALES_AGREE_SIGMA {
-        let apart = diameter.value - flights.value;
-        return (
-            Fitted {
-                value: flights.value,
-                sigma: flights.sigma.hypot(apart),
-            },
-            Some(z),
-        );
-    }
-    let (wf, wd) = (flights.sigma.powi(-2), diameter.sigma.powi(-2));
-    (
-        Fitted {
-            value: (wf * flights.value + wd * diameter.value) / (wf + wd),
-            sigma: (wf + wd).recip().sqrt() * z.abs().max(1.0),
-        },
-        None,
-    )
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn fitted(value: f64, sigma: f64) -> Fitted {
-        Fitted { value, sigma }
-    }
-
-    /// Scales that agree are weighed by their σ, the result knowing more than either where
-    /// they lie within 1σ of each other, and its σ widened by their distance in σ beyond; a
-    /// diameter's scale beyond 3σ of the flights' is left out, the distance said and taken
-    /// into the σ.
-    #[test]
-    fn the_flights_and_the_diameters_scales_are_weighed_where_they_agree() {
-        let (wf, wd) = (0.0178f64.powi(-2), 0.0095f64.powi(-2));
-        let weighed = (wf + wd).recip().sqrt();
-        let (both, note) = combine_scales(fitted(2.3275, 0.0178), fitted(2.3146, 0.0095));
-        assert_eq!(note, None);
-        assert!((both.value - (wf * 2.3275 + wd * 2.3146) / (wf + wd)).abs() < 1e-12);
-        assert!(both.value > 2.3146 && both.value < 2.3275);
-        assert_eq!(both.sigma, weighed, "within 1σ of each other");
-        // 2.0σ apart: the same weighing, its σ twice as wide.
-        let apart = 2.0 * 0.0178f64.hypot(0.0095);
-        let (wide, note) = combine_scales(fitted(2.3146 + apart, 0.0178), fitted(2.3146, 0.0095));
-        assert_eq!(note, None);
-        assert!((wide.sigma - 2.0 * weighed).abs() < 1e-12, "{}", wide.sigma);
-        let (alone, note) = combine_scales(fitted(2.1576, 0.002), fitted(2.10, 0.005));
-        assert_eq!(alone.value, 2.1576);
-        assert!((alone.sigma - 0.002f64.hypot(2.1576 - 2.10)).abs() < 1e-12);
-        let z = note.unwrap();
-        assert!(
-            (z - (2.10 - 2.1576) / 0.002f64.hypot(0.005)).abs() < 1e-9,
-            "{z}"
-        );
-        // Nothing to weigh: the flights' as they are.
-        let (kept, note) = combine_scales(fitted(2.0, 0.01), fitted(f64::NAN, f64::NAN));
-        assert_eq!((kept.value, note), (2.0, None));
-    }
-
-    /// A lens left out widens each map parameter's σ by how far a lens fitted moves it (here
-    /// the mirror's roll, 7° against 0.6°), and leaves the values and the 1/distance alone.
-    #[test]
-    fn a_lens_left_out_widens_the_maps_by_what_it_would_move() {
-        let bundle = |roll_deg: f64, scale: f64| bundle::Bundle {
-            direct_scale: fitted(scale, 0.01),
-            direct_roll: fitted(0.3, 0.2),
-            kappa: [fitted(0.0, 1e-4), fitted(0.001, 2e-4)],
-            lens_k1: fitted(0.0, 0.0),
-            mirror: Some(MirrorFit {
-                scale: fitted(2.1, 0.02),
-                scale_from_diameter: fitted(f64::NAN, f64::NAN),
-                roll_deg: fitted(roll_deg, 1.0),
-                tilt_deg: fitted(-5.0, 0.4),
-                yaw_deg: fitted(0.5, 0.3),
-                origin_x_px: fitted(120.0, 0.01),
-                x_along_v: false,
-                x_reversed: false,
-                residual_rms_px: 0.04,
-                points: 100,
-                camera_distance_mm: None,
-            }),
-            residual_rms_px: [0.04, 0.04],
-            mean_depth_mm: [0.0, 0.0],
-        };
-        let without = bundle(7.0, 2.16);
-        let with_lens = bundle(0.6, 2.14);
-        let w = widened_by(without, &with_lens);
-        let m = w.mirror.as_ref().unwrap();
-        assert_eq!(m.roll_deg.value, 7.0);
-        assert!(
-            (m.roll_deg.sigma - 1.0f64.hypot(6.4)).abs() < 1e-9,
-            "{}",
-            m.roll_deg.sigma
-        );
-        assert!((w.direct_scale.sigma - 0.01f64.hypot(0.02)).abs() < 1e-9);
-        assert_eq!(
-            (m.tilt_deg.sigma, m.yaw_deg.sigma),
-            (0.4, 0.3),
-            "unmoved: as they were"
-        );
-        assert_eq!((w.kappa[1].value, w.kappa[1].sigma), (0.001, 2e-4));
-    }
-
-    /// The flights' accelerations scattered twice as widely as their σ say widen every scale
-    /// from them twice; scattered within their σ, not at all (the ratio is never below 1).
-    #[test]
-    fn flights_that_scatter_beyond_their_sigma_widen_it() {
-        let mean = [0.0, 21_000.0];
-        let at = |du: f64, dv: f64| ([mean[0] + du, mean[1] + dv], 100.0);
-        // Each flight 2σ off in u and in v: χ² = 4·(2² + 2²) = 32 over 2·(4 − 1) = 6 dof.
-        let wide = [
-            at(200.0, 200.0),
-            at(-200.0, -200.0),
-            at(200.0, -200.0),
-            at(-200.0, 200.0),
-        ];
-        let r = scatter_ratio(&wide, mean);
-        assert!((r - (32.0f64 / 6.0).sqrt()).abs() < 1e-12, "{r}");
-        let tight = [
-            at(10.0, -20.0),
-            at(-10.0, 20.0),
-            at(5.0, 0.0),
-            at(-5.0, 0.0),
-        ];
-        assert_eq!(scatter_ratio(&tight, mean), 1.0);
-        assert_eq!(scatter_ratio(&wide[..1], mean), 1.0);
-    }
-
-    /// What calibrate writes for how well it knows a map is always a value the config accepts:
-    /// the analysis must not refuse the config calibrate printed.
-    #[test]
-    fn how_well_a_map_is_known_is_written_within_the_configs_bounds() {
-        let toml = |p: f64, d: f64| {
-            format!(
-                "[geometry.direct]\nregion = [0, 0, 240, 96]\npx_per_mm = 2.0\norigin_px = [120.0, 48.0]\nu_axis = \"+x\"\nv_axis = \"-y\"\npx_per_mm_uncertainty_percent = {}\nturn_uncertainty_deg = [0.0, 0.0, {}]\n",
-                percent_known(p),
-                degrees_known(d)
-            )
-        };
-        for (p, d) in [
-            (0.21, 0.088),
-            (35.0, 12.0),
-            (f64::NAN, f64::INFINITY),
-            (-0.3, -0.1),
-        ] {
-            let t = toml(p, d);
-            assert!(Config::from_toml_str(&t, "cal.toml").is_ok(), "{t}");
-        }
-        assert_eq!(percent_known(0.21), 0.21);
-        assert_eq!(degrees_known(f64::NAN), 10.0);
-    }
 }

@@ -8,7 +8,7 @@ mod assemble;
 mod spins;
 
 #[cfg(test)]
-pub(super) use spins::widen_by_first_pass;
+pub(super) use spins::{first_pass_source, widen_by_first_pass};
 
 use super::calibration::{self, calibrate_mirror};
 use super::geometry::View;

@@ -217,6 +217,17 @@ pub(in crate::analysis) fn widen_by_first_pass(fit: &mut SpinFit, earlier: V3, p
         return;
     }
     fit.cov += d * d.transpose();
-    // A source of its own per phase, apart from every frame and from `spin_tracks`' model terms.
-    fit.frame_influence.push((usize::MAX - 1 - phase, d));
+    fit.frame_influence.push((first_pass_source(phase), d));
+}
+
+/// The index of the passes' difference among a spin's error sources (`SpinFit::frame_influence`),
+/// one per phase: apart from every frame, from `spin_tracks`' model terms (just below
+/// `usize::MAX − 64` and about `usize::MAX / 2`), the handedness doubt's (`usize::MAX / 4`) and
+/// the impulse's (the top sixteen). Until session 49 it was `usize::MAX − 1 − phase`, two of
+/// which are the impulse's own terms of sphere a: where the spins after the impact follow the
+/// impulse, `uncertainty::spin_variance` leaves those out (the velocities carry them), and so
+/// left out the passes' difference of the spins before it, which moves ψ1 (an independent
+/// render saved as JPEG: b's spin before 853 ± 1458 rad/s about z, ψ1 0.66 off at 5.7σ).
+pub(in crate::analysis) fn first_pass_source(phase: usize) -> usize {
+    usize::MAX / 8 + phase
 }
