@@ -172,59 +172,6 @@ pub(super) fn diameter_scale(obs: &[FrameObs], vi: usize, diam_mm: [f64; 2]) -> 
     })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::analysis::tracking::Measurement;
-
-    /// 30 frames of both spheres seen whole in one view, diameters 13.7 px ± 0.02 px.
-    fn discs(edge_width_px: f64) -> Vec<FrameObs> {
-        (0..30)
-            .map(|k| {
-                let m = |d: f64| {
-                    Some(Measurement {
-                        centre_px: [50.0, 40.0],
-                        blob_centroid_px: [50.0, 40.0],
-                        sigma_px: [0.02; 2],
-                        diameter_px: d,
-                        edge_width_px,
-                        markers: Vec::new(),
-                        hidden_in_part: None,
-                        radius_stray_px: 0.0,
-                    })
-                };
-                let d = 13.7 + 0.02 * ((k % 5) as f64 - 2.0);
-                FrameObs {
-                    index: k,
-                    frame_id: k,
-                    time_s: k as f64 / 1000.0,
-                    spheres: [vec![m(d)], vec![m(d + 0.01)]],
-                    position_mm: [None, None],
-                }
-            })
-            .collect()
-    }
-
-    /// The diameter's scale is known no better than the disc's model places an edge, however
-    /// many frames agree, and worse where the edge is blurred.
-    #[test]
-    fn the_diameters_scale_carries_what_the_look_can_do_to_every_disc() {
-        let diam = [6.35, 6.35];
-        let sharp = diameter_scale(&discs(0.05), 0, diam).unwrap();
-        let blurred = diameter_scale(&discs(0.6), 0, diam).unwrap();
-        let typed_in = diameter_scale(&discs(f64::NAN), 0, diam).unwrap();
-        assert!((sharp.value - 13.7 / 6.35).abs() < 0.01, "{}", sharp.value);
-        // The median of 60 discs scattered by 0.02 px alone would claim 0.02 %.
-        let floor = EDGE_SYSTEMATIC_PX / 6.85;
-        let rel = |f: Fitted| f.sigma / f.value;
-        assert!(rel(sharp) >= floor, "sharp: {} against {floor}", rel(sharp));
-        assert!(rel(sharp) < 1.1 * floor, "sharp: {}", rel(sharp));
-        assert!(rel(typed_in) >= floor, "{}", rel(typed_in));
-        // s = 0.6: σ_b = 1.09 px, σ_b²/R = 0.17 px, 2.5 % of R.
-        assert!(rel(blurred) > 0.02, "blurred: {}", rel(blurred));
-    }
-}
-
 /// The direct view's free fall, pooled over the flights (`free_fall`).
 pub(super) struct FreeFall {
     /// px/mm, from the acceleration's size (g known).
@@ -289,4 +236,57 @@ pub(super) fn free_fall(
         },
         scatter,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::tracking::Measurement;
+
+    /// 30 frames of both spheres seen whole in one view, diameters 13.7 px ± 0.02 px.
+    fn discs(edge_width_px: f64) -> Vec<FrameObs> {
+        (0..30)
+            .map(|k| {
+                let m = |d: f64| {
+                    Some(Measurement {
+                        centre_px: [50.0, 40.0],
+                        blob_centroid_px: [50.0, 40.0],
+                        sigma_px: [0.02; 2],
+                        diameter_px: d,
+                        edge_width_px,
+                        markers: Vec::new(),
+                        hidden_in_part: None,
+                        radius_stray_px: 0.0,
+                    })
+                };
+                let d = 13.7 + 0.02 * ((k % 5) as f64 - 2.0);
+                FrameObs {
+                    index: k,
+                    frame_id: k,
+                    time_s: k as f64 / 1000.0,
+                    spheres: [vec![m(d)], vec![m(d + 0.01)]],
+                    position_mm: [None, None],
+                }
+            })
+            .collect()
+    }
+
+    /// The diameter's scale is known no better than the disc's model places an edge, however
+    /// many frames agree, and worse where the edge is blurred.
+    #[test]
+    fn the_diameters_scale_carries_what_the_look_can_do_to_every_disc() {
+        let diam = [6.35, 6.35];
+        let sharp = diameter_scale(&discs(0.05), 0, diam).unwrap();
+        let blurred = diameter_scale(&discs(0.6), 0, diam).unwrap();
+        let typed_in = diameter_scale(&discs(f64::NAN), 0, diam).unwrap();
+        assert!((sharp.value - 13.7 / 6.35).abs() < 0.01, "{}", sharp.value);
+        // The median of 60 discs scattered by 0.02 px alone would claim 0.02 %.
+        let floor = EDGE_SYSTEMATIC_PX / 6.85;
+        let rel = |f: Fitted| f.sigma / f.value;
+        assert!(rel(sharp) >= floor, "sharp: {} against {floor}", rel(sharp));
+        assert!(rel(sharp) < 1.1 * floor, "sharp: {}", rel(sharp));
+        assert!(rel(typed_in) >= floor, "{}", rel(typed_in));
+        // s = 0.6: σ_b = 1.09 px, σ_b²/R = 0.17 px, 2.5 % of R.
+        assert!(rel(blurred) > 0.02, "blurred: {}", rel(blurred));
+    }
 }
