@@ -193,27 +193,4 @@ pub(super) fn beta_where_defined(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::beta_where_defined;
-
-    /// β is reported with ψ1 clear of zero, and left null with a warning that gives ψ1 where
-    /// ψ1 lies within 3σ of zero (the ratio's propagated σ does not hold there).
-    #[test]
-    fn beta_is_null_where_psi1_is_not_clear_of_zero() {
-        let mut warnings = Vec::new();
-        let kept = beta_where_defined(Some((0.45, 0.02)), Some((0.60, 0.10)), &mut warnings);
-        assert_eq!(kept.map(|b| (b.value, b.uncertainty)), Some((0.45, 0.02)));
-        assert!(warnings.is_empty());
-        let dropped = beta_where_defined(Some((-0.82, 0.15)), Some((0.285, 0.16)), &mut warnings);
-        assert!(dropped.is_none());
-        assert_eq!(warnings.len(), 1);
-        assert!(
-            warnings[0].contains("ψ1 = 0.285 ± 0.160"),
-            "{}",
-            warnings[0]
-        );
-        // No β, nothing to say.
-        assert!(beta_where_defined(None, Some((0.0, 1.0)), &mut warnings).is_none());
-        assert_eq!(warnings.len(), 1);
-    }
-}
+mod tests;

@@ -324,7 +324,7 @@ const RESTART_AGREE_PX: f64 = 0.25;
 /// centre trades off with them — a lone sphere blurred by 1.1 px scattered 0.20 px (σ = 2)
 /// where its fit claimed 0.11, and lit from 30° to one side came out 0.05–0.06 px towards the
 /// lamp. With the ring reaching past the blur: 0.10 px against a claimed 0.085, and within
-/// 0.01 px (`circle::tests::a_defocused_sphere_is_measured_as_well_as_its_fit_claims`).
+/// 0.01 px (`circle::tests::lone::a_defocused_sphere_is_measured_as_well_as_its_fit_claims`).
 const INNER_BAND_PER_EDGE_WIDTH: f64 = 2.0;
 
 /// The inner band a second fit should use after a first one (on `PROFILE_BAND_PX`) found the

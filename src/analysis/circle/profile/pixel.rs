@@ -31,7 +31,7 @@ pub(super) struct PixelModel {
 
 /// Instants of the exposure per pixel of the longest smear (`PixelModel::eval`), and at most:
 /// a quarter of a pixel apart, as hw-sim draws a streak. A disc smeared by 3–4 px lit from 30°
-/// off the axis (`circle::tests::a_disc_smeared_over_the_exposure_is_fitted_as_smeared`): 12
+/// off the axis (`circle::tests::lone::a_disc_smeared_over_the_exposure_is_fitted_as_smeared`): 12
 /// instants left its centre within 0.01 px on average where the round model put it 0.06–0.19
 /// px off, and a round model with the smear added to the edge's width (its variance) 0.02–0.04.
 const SMEAR_INSTANTS_PER_PX: f64 = 4.0;
