@@ -39,11 +39,14 @@ pub struct GreyImage {
     /// The rectangles [x0, y0, x1, y1) (exclusive ends) of views the normalisation inverted
     /// (backlit: the spheres darker than their ground); empty where none was.
     pub inverted: Arc<[[usize; 4]]>,
-    /// Per pixel (row-major), whether it was at the top of the camera's range before
-    /// normalisation (`SATURATED_GREY`) in a view whose spheres are brighter than their ground:
-    /// an overexposed sphere's level there is only known to be at least what it shows
-    /// (`backdrop`). Empty where nothing was marked.
-    pub saturated: Vec<bool>,
+    /// Per pixel (row-major), whether its level says nothing reliable of what the pixel sees
+    /// (`backdrop`): it was at the top of the camera's range before normalisation
+    /// (`SATURATED_GREY`) in a view whose spheres are brighter than their ground, where an
+    /// overexposed sphere's level is only known to be at least what it shows; or it is stuck,
+    /// a defective pixel that showed one level in every sampled frame while its neighbours
+    /// changed. The disc fits and the dots' shading leave such pixels out. Empty where nothing
+    /// was marked.
+    pub unmeasured: Vec<bool>,
 }
 
 /// One view's frame lit differently from its backdrop (`GreyImage::ground_light`).
@@ -67,7 +70,7 @@ impl GreyImage {
             ground: None,
             ground_light: Vec::new(),
             inverted: Arc::from([]),
-            saturated: Vec::new(),
+            unmeasured: Vec::new(),
         }
     }
 
@@ -78,7 +81,7 @@ impl GreyImage {
         self.ground = None;
         self.ground_light.clear();
         self.inverted = Arc::from([]);
-        self.saturated.clear();
+        self.unmeasured.clear();
         self.data.clear();
         if bytes_per_pixel == 1 {
             self.data.extend(raw.iter().map(|&b| b as f32));
@@ -96,21 +99,21 @@ impl GreyImage {
     }
 
     /// How far pixel (u, v), as a sphere shows it (`lit_at`), lies below `expected`: 0 where it
-    /// was saturated, since its level is only known to be at least what it shows (a dot on an
-    /// overexposed face is darker than the ceiling; the face around it is not).
+    /// is unmeasured, since its level is at most a floor (a dot on an overexposed face is darker
+    /// than the ceiling; the face around it is not) or nothing at all (a stuck pixel).
     #[inline]
     pub fn below(&self, u: usize, v: usize, expected: f64) -> f64 {
-        if self.saturated_at(u, v) {
+        if self.unmeasured_at(u, v) {
             0.0
         } else {
             expected - self.lit_at(u, v) as f64
         }
     }
 
-    /// Whether pixel (u, v) was saturated (`saturated`).
+    /// Whether pixel (u, v)'s level is unreliable (`unmeasured`).
     #[inline]
-    pub fn saturated_at(&self, u: usize, v: usize) -> bool {
-        self.saturated
+    pub fn unmeasured_at(&self, u: usize, v: usize) -> bool {
+        self.unmeasured
             .get(v * self.width + u)
             .copied()
             .unwrap_or(false)

@@ -337,7 +337,7 @@ impl FrameSource for MemoryFrames {
     fn read(&mut self, i: usize, img: &mut GreyImage) -> Result<(), AnalysisError> {
         img.width = self.w;
         img.height = self.h;
-        img.saturated.clear();
+        img.unmeasured.clear();
         img.data.clone_from(&self.frames[i]);
         Ok(())
     }

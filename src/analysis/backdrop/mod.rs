@@ -10,7 +10,9 @@
 //! a quantile on the ground's side of the spheres (the 20th percentile for bright spheres, the
 //! 80th for dark ones) leaves them out as long as no pixel is covered in more than 80 % of the
 //! sampled frames. With fewer than `MIN_FRAMES` frames there is no backdrop, only the polarity.
-//! Where the lamps flicker, each frame's view is matched to the still first (`gain`).
+//! Where the lamps flicker, each frame's view is matched to the still first (`gain`). A pixel
+//! that shows one level in every sample while its neighbours change is a defective one, hot or
+//! dead (`stuck_pixels`): marked unmeasured in every frame, as an overexposed one is.
 
 mod gain;
 
@@ -28,6 +30,11 @@ pub const MIN_FRAMES: usize = 9;
 const MAX_SAMPLE_BYTES: usize = 256 << 20;
 /// The backdrop's quantile on the ground's side of the spheres.
 const GROUND_QUANTILE: f64 = 0.2;
+/// How far, in grey levels, each of a stuck pixel's four neighbours must have ranged over the
+/// samples (`stuck_pixels`): a sphere passed there, or the noise shows that pixels vary there.
+/// A few levels: the range of σ = 2 noise over 31 samples is about 16, a sphere's far more,
+/// and a noise-free render's ground (range 0) never counts.
+const STUCK_NEIGHBOUR_RANGE: f32 = 3.0;
 
 /// One view's normalisation.
 #[derive(Clone, Debug)]
@@ -43,6 +50,8 @@ struct ViewBackdrop {
     level: f32,
     /// The still in blocks, where its shape can tell a frame's gain from an offset.
     blocks: Option<gain::Blocks>,
+    /// Stuck pixels (`stuck_pixels`), as indices into the frame.
+    stuck: Vec<usize>,
 }
 
 /// The per-view normalisation of a recording's frames.
@@ -79,10 +88,17 @@ impl Backdrop {
         let Some((w, h)) = frames.first().map(|f| (f.width, f.height)) else {
             return Ok(Backdrop::default());
         };
+        let rects: Vec<[usize; 4]> = views
+            .iter()
+            .map(|view| {
+                let [x, y, vw, vh] = view.region.map(|v| v as usize);
+                [x.min(w), y.min(h), (x + vw).min(w), (y + vh).min(h)]
+            })
+            .collect();
+        // On the samples as recorded (the still below may bring them to one light).
+        let stuck: Vec<Vec<usize>> = rects.iter().map(|&r| stuck_pixels(&frames, r)).collect();
         let mut out = Vec::with_capacity(views.len());
-        for view in views {
-            let [x, y, vw, vh] = view.region.map(|v| v as usize);
-            let rect = [x.min(w), y.min(h), (x + vw).min(w), (y + vh).min(h)];
+        for ((view, &rect), stuck) in views.iter().zip(&rects).zip(stuck) {
             let dark_spheres = dark_spheres(&frames, rect);
             let still = (k >= MIN_FRAMES).then(|| {
                 let q = if dark_spheres {
@@ -136,6 +152,7 @@ impl Backdrop {
                 still,
                 level,
                 blocks,
+                stuck,
             });
         }
         // What a sphere in front of the backdrop hides: the subtracted still, bright side up,
@@ -173,7 +190,7 @@ impl Backdrop {
             .clone()
             .filter(|g| g.len() == img.width * img.height);
         img.inverted = self.inverted.clone();
-        img.saturated.clear();
+        img.unmeasured.clear();
         img.ground_light.clear();
         for vb in &self.views {
             let [x0, y0, x1, y1] = vb.rect;
@@ -200,15 +217,25 @@ impl Backdrop {
             } else {
                 vb.level
             };
+            if !vb.stuck.is_empty() {
+                if img.unmeasured.is_empty() {
+                    img.unmeasured.resize(img.width * img.height, false);
+                }
+                for &i in &vb.stuck {
+                    if let Some(m) = img.unmeasured.get_mut(i) {
+                        *m = true;
+                    }
+                }
+            }
             for v in y0..y1 {
                 for u in x0..x1 {
                     // Overexposed: marked before the level is moved (bright spheres only; in a
                     // backlit view what saturates is the ground).
                     if !vb.dark_spheres && img.data[v * w + u] >= SATURATED_GREY {
-                        if img.saturated.is_empty() {
-                            img.saturated.resize(img.width * img.height, false);
+                        if img.unmeasured.is_empty() {
+                            img.unmeasured.resize(img.width * img.height, false);
                         }
-                        img.saturated[v * w + u] = true;
+                        img.unmeasured[v * w + u] = true;
                     }
                     let p = &mut img.data[v * w + u];
                     let lit = |s: f32| match light {
@@ -234,19 +261,65 @@ impl Backdrop {
         }
     }
 
-    /// What a reader of the report must know: views measured inverted.
+    /// What a reader of the report must know: views measured inverted, and stuck pixels.
     pub fn warnings(&self) -> Vec<String> {
-        self.views
-            .iter()
-            .filter(|v| v.dark_spheres)
-            .map(|v| {
-                format!(
-                    "{} view: the spheres are darker than their ground (backlit); measured inverted, its markers looked for as dots darker still (seen only where a light in front shows them)",
-                    v.name
-                )
-            })
-            .collect()
+        let inverted = self.views.iter().filter(|v| v.dark_spheres).map(|v| {
+            format!(
+                "{} view: the spheres are darker than their ground (backlit); measured inverted, its markers looked for as dots darker still (seen only where a light in front shows them)",
+                v.name
+            )
+        });
+        let stuck = self.views.iter().filter(|v| !v.stuck.is_empty()).map(|v| {
+            format!(
+                "{} view: {} stuck pixel(s) (one level in every sampled frame while their neighbours changed: hot or dead) left out of the disc fits and the dots' shading",
+                v.name,
+                v.stuck.len()
+            )
+        });
+        inverted.chain(stuck).collect()
     }
+}
+
+/// The pixels of `rect` (indices into the frame) that show one level in every sample while
+/// each of their four neighbours ranged over `STUCK_NEIGHBOUR_RANGE` or more: a defective
+/// pixel, hot or dead, which does not see a sphere pass over it. Why: such a pixel on a disc's
+/// ring is a residual the size of the sphere's contrast in every frame the sphere covers it;
+/// 200 of them on the independent renders (half at 255, half at 0) put v08's centres 0.208 px
+/// RMS off where they were 0.018 (docs/accuracy.md, session 49). None with fewer than
+/// `MIN_FRAMES` samples.
+fn stuck_pixels(frames: &[GreyImage], rect: [usize; 4]) -> Vec<usize> {
+    let [x0, y0, x1, y1] = rect;
+    let Some(w) = frames.first().map(|f| f.width) else {
+        return Vec::new();
+    };
+    if frames.len() < MIN_FRAMES || x1 < x0 + 3 || y1 < y0 + 3 {
+        return Vec::new();
+    }
+    let rw = x1 - x0;
+    let mut range = Vec::with_capacity(rw * (y1 - y0));
+    for v in y0..y1 {
+        for u in x0..x1 {
+            let (lo, hi) = frames.iter().fold((f32::MAX, f32::MIN), |(lo, hi), f| {
+                let g = f.at(u, v);
+                (lo.min(g), hi.max(g))
+            });
+            range.push(hi - lo);
+        }
+    }
+    let at = |u: usize, v: usize| range[(v - y0) * rw + (u - x0)];
+    let mut out = Vec::new();
+    for v in y0 + 1..y1 - 1 {
+        for u in x0 + 1..x1 - 1 {
+            if at(u, v) == 0.0
+                && [(u - 1, v), (u + 1, v), (u, v - 1), (u, v + 1)]
+                    .iter()
+                    .all(|&(a, b)| at(a, b) >= STUCK_NEIGHBOUR_RANGE)
+            {
+                out.push(v * w + u);
+            }
+        }
+    }
+    out
 }
 
 /// Per pixel of `rect`, the `idx`-th smallest of the frames' values (row-major over the rect).

@@ -313,3 +313,33 @@ fn a_backlit_view_under_a_flickering_lamp_is_matched_the_right_way_up() {
     // (A frame whose light happens to be the still's is left as it is.)
     assert!(matched >= 3, "{matched} of 4 frames matched");
 }
+
+/// Pixels stuck at one level (hot, or dead) where the disc passes are marked unmeasured in
+/// every frame, and said; none of the pixels that see the disc pass is, nor the still ground,
+/// whose noise here (±1) ranges too little to tell a stuck pixel there from a quiet one.
+#[test]
+fn a_stuck_pixel_on_the_spheres_path_is_left_out_and_said() {
+    let mut src = recording(20.0, 180.0, 160.0, 0.0);
+    let (hot, dead) = (12 * 96 + 40, 12 * 96 + 61);
+    for f in src.frames.iter_mut() {
+        f[hot] = 255.0;
+        f[dead] = 0.0;
+    }
+    let b = Backdrop::estimate(&mut src, &[view(96, 32)]).expect("estimate");
+    assert_eq!(b.views[0].stuck, vec![hot, dead]);
+    let mut img = GreyImage::new();
+    src.read(10, &mut img).expect("read");
+    b.apply(&mut img);
+    assert!(img.unmeasured_at(40, 12) && img.unmeasured_at(61, 12));
+    assert_eq!(img.unmeasured.iter().filter(|&&m| m).count(), 2);
+    assert!(
+        b.warnings().iter().any(|w| w.contains("2 stuck pixel(s)")),
+        "{:?}",
+        b.warnings()
+    );
+    // The same recording without them: nothing stuck, nothing said.
+    let mut clean = recording(20.0, 180.0, 160.0, 0.0);
+    let b = Backdrop::estimate(&mut clean, &[view(96, 32)]).expect("estimate");
+    assert!(b.views[0].stuck.is_empty());
+    assert!(b.warnings().is_empty(), "{:?}", b.warnings());
+}

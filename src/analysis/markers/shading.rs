@@ -48,7 +48,7 @@ impl Shading {
                 // (An overexposed pixel says only that the shading is at least its level.)
                 if (fu - centre[0]).hypot(fv - centre[1]) < within
                     && view.contains(fu, fv)
-                    && !img.saturated_at(u, v)
+                    && !img.unmeasured_at(u, v)
                 {
                     pix.push((
                         Self::basis_of(centre, radius, fu, fv),

@@ -116,7 +116,7 @@ fn found_on_still_sphere(
     let mut img = GreyImage::new();
     img.load(&raw, n, n, 1);
     // Pixels at the camera's ceiling marked as the normalisation marks them.
-    img.saturated = img
+    img.unmeasured = img
         .data
         .iter()
         .map(|&g| g >= crate::analysis::image::SATURATED_GREY)

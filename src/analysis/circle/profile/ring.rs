@@ -59,7 +59,7 @@ pub(super) fn ring_pixels(
             // An overexposed pixel's level is only a floor: the shading model would be pulled
             // down to the camera's ceiling (overexposed side-lit spheres: ψ off by 0.03, spins
             // at 6σ, against 0.003 exposed right). Left out, as a dot is.
-            if img.saturated_at(u, v) {
+            if img.unmeasured_at(u, v) {
                 continue;
             }
             if dots

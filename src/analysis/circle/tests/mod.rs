@@ -421,7 +421,7 @@ fn lone_sphere_fits_encoded(
                 crate::analysis::linear::decode(&mut img, gamma);
             }
             // Pixels at the camera's ceiling marked as the normalisation marks them.
-            img.saturated = img.data.iter().map(|&g| g >= SATURATED_GREY).collect();
+            img.unmeasured = img.data.iter().map(|&g| g >= SATURATED_GREY).collect();
             let rough = [truth[0][0] + 0.4, truth[0][1] - 0.3];
             let f = refine(&img, &view, rough, r_px, cfg.background_grey, None, &[])
                 .expect("a lone sphere is measured");
