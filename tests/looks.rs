@@ -164,6 +164,26 @@ fn spheres_one_behind_the_other_in_the_direct_view_after_the_impact_keep_their_y
 fn spheres_in_front_of_tube_ends_and_a_ruler_are_measured_where_they_are() {
     let t = tempfile::tempdir().unwrap();
     let (report, truth) = run(t.path(), "cluttered", 4);
+    let (clear, both, errors) = centres_where_apart(&report, &truth);
+    assert!(
+        clear > 100,
+        "{clear} frames with both spheres clear of the tubes and apart"
+    );
+    let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    let worst = errors.iter().cloned().fold(0.0, f64::max);
+    assert!(
+        both as f64 >= 0.98 * clear as f64 && rms < 0.04 && worst < 0.3,
+        "both measured in {both} of {clear} frames; centre RMS {rms:.4} px, worst {worst:.3} px"
+    );
+}
+
+/// Over the frames where, by the truth, both spheres are out of their tubes, wholly inside a
+/// view (the default config's regions) and apart: how many such view-frames there are, in
+/// how many both were measured, and each measured centre's distance from the truth, px.
+fn centres_where_apart(
+    report: &serde_json::Value,
+    truth: &serde_json::Value,
+) -> (usize, usize, Vec<f64>) {
     // The default config's views: [x, y, width, height].
     let regions = [
         ("direct", [0.0, 0.0, 240.0, 96.0]),
@@ -214,10 +234,26 @@ fn spheres_in_front_of_tube_ends_and_a_ruler_are_measured_where_they_are() {
             }
         }
     }
-    assert!(
-        clear > 100,
-        "{clear} frames with both spheres clear of the tubes and apart"
+    (clear, both, errors)
+}
+
+/// A sensor with 400 stuck pixels (hw-sim's `stuck_pixels`: half hot at 255, half dead at 0,
+/// about 1 % of the frame; a side-lit look): the pixels are found and said, and the centres
+/// hold as on a clean sensor. A stuck pixel on a disc's ring is a residual the size of the
+/// sphere's contrast in every frame that brings the edge over it; before the backdrop found
+/// them this experiment gave centre RMS 0.074 px and one centre 0.54 px off (0.022 and 0.075
+/// after).
+#[test]
+fn a_sensors_stuck_pixels_are_left_out() {
+    let t = tempfile::tempdir().unwrap();
+    let (report, truth) = run_config(
+        t.path(),
+        "[sim]\nseed = 7\nlook_family = \"side_lit\"\nstuck_pixels = 400\n",
     );
+    let warnings = report["quality"]["warnings"].to_string();
+    assert!(warnings.contains("stuck pixel(s)"), "{warnings}");
+    let (clear, both, errors) = centres_where_apart(&report, &truth);
+    assert!(clear > 100, "{clear} view-frames with both spheres apart");
     let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
     let worst = errors.iter().cloned().fold(0.0, f64::max);
     assert!(

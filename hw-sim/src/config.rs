@@ -17,6 +17,10 @@ fn is_one(x: &f64) -> bool {
     *x == 1.0
 }
 
+fn is_none_stuck(x: &u32) -> bool {
+    *x == 0
+}
+
 fn is_default_flicker_hz(x: &f64) -> bool {
     *x == DEFAULT_FLICKER_HZ
 }
@@ -89,6 +93,11 @@ pub struct LabConfig {
     /// for sRGB-like); 1: linear. Needs a look.
     #[serde(skip_serializing_if = "is_one")]
     pub gamma: f64,
+    /// The sensor's defective pixels, stuck at one level in every frame (the first of each pair
+    /// at the top of the range, hot; the second at 0, dead), at places drawn from the seed, as
+    /// a real sensor has a few. 0: none.
+    #[serde(skip_serializing_if = "is_none_stuck")]
+    pub stuck_pixels: u32,
     /// Samples per pixel side for anti-aliasing (4 → 16 samples).
     pub supersample: u32,
     /// Samples per pixel side where a sphere's limb or a marker's rim crosses the pixel. A
@@ -162,6 +171,7 @@ impl Default for LabConfig {
             flicker_percent: 0.0,
             flicker_hz: DEFAULT_FLICKER_HZ,
             gamma: 1.0,
+            stuck_pixels: 0,
             supersample: 4,
             edge_supersample: 16,
             drop_frame_ids: Vec::new(),
@@ -281,6 +291,7 @@ impl LabConfig {
         range("flicker_percent", self.flicker_percent, 0.0, 100.0)?;
         range("flicker_hz", self.flicker_hz, 1.0, 10000.0)?;
         range("gamma", self.gamma, 0.2, 5.0)?;
+        range("stuck_pixels", f64::from(self.stuck_pixels), 0.0, 10_000.0)?;
         if self.gamma != 1.0 && drawn.look.is_none() {
             return Err("sim.gamma: a camera's gamma is drawn under a look only (sim.look or sim.look_family)".into());
         }

@@ -35,6 +35,8 @@ pub struct Renderer {
     look: Option<LookState>,
     /// The lamps' flicker, when the config gives one (`sim.flicker_percent`).
     flicker: Option<flicker::Flicker>,
+    /// The sensor's stuck pixels (`sim.stuck_pixels`): frame index, and whether hot (else dead).
+    stuck: Vec<(usize, bool)>,
 }
 
 /// What one sphere looks like during one sub-exposure instant.
@@ -58,6 +60,11 @@ impl Renderer {
         }
         let look = cfg.look.clone().map(|l| LookState::new(l, &scene, &cfg));
         let flicker = flicker::Flicker::new(&cfg, seed);
+        // From a generator of their own: the other draws stay as they were.
+        let mut places = Rng::new(seed ^ 0x57AC_D0E5);
+        let stuck = (0..cfg.stuck_pixels)
+            .map(|k| ((places.next_u64() % npx.max(1) as u64) as usize, k % 2 == 0))
+            .collect();
         Renderer {
             scene,
             cfg,
@@ -67,6 +74,7 @@ impl Renderer {
             rng,
             look,
             flicker,
+            stuck,
         }
     }
 
@@ -148,10 +156,21 @@ impl Renderer {
                 .as_ref()
                 .map_or(1.0, |f| f.gain(t_mid_s, exposure));
             self.render_with_look(&poses, gain, out);
-            return;
+        } else {
+            for vi in 0..self.scene.views.len() {
+                self.render_view(vi, &poses, out);
+            }
         }
-        for vi in 0..self.scene.views.len() {
-            self.render_view(vi, &poses, out);
+        let bpp = self.bytes_per_pixel;
+        for &(i, hot) in &self.stuck {
+            let level: u16 = if hot { u16::MAX } else { 0 };
+            if let Some(px) = out.get_mut(i * bpp..(i + 1) * bpp) {
+                if bpp == 1 {
+                    px[0] = if hot { u8::MAX } else { 0 };
+                } else {
+                    px.copy_from_slice(&level.to_le_bytes());
+                }
+            }
         }
     }
 

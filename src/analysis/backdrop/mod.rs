@@ -296,16 +296,24 @@ fn stuck_pixels(frames: &[GreyImage], rect: [usize; 4]) -> Vec<usize> {
         return Vec::new();
     }
     let rw = x1 - x0;
-    let mut range = Vec::with_capacity(rw * (y1 - y0));
-    for v in y0..y1 {
-        for u in x0..x1 {
-            let (lo, hi) = frames.iter().fold((f32::MAX, f32::MIN), |(lo, hi), f| {
-                let g = f.at(u, v);
-                (lo.min(g), hi.max(g))
-            });
-            range.push(hi - lo);
+    // Row slices, frame by frame: the samples are walked in memory order.
+    let mut lo = vec![f32::MAX; rw * (y1 - y0)];
+    let mut hi = vec![f32::MIN; rw * (y1 - y0)];
+    for f in frames {
+        for v in y0..y1 {
+            let row = &f.data[v * f.width + x0..v * f.width + x1];
+            let at = (v - y0) * rw;
+            for ((g, l), h) in row
+                .iter()
+                .zip(&mut lo[at..at + rw])
+                .zip(&mut hi[at..at + rw])
+            {
+                *l = l.min(*g);
+                *h = h.max(*g);
+            }
         }
     }
+    let range: Vec<f32> = hi.iter().zip(&lo).map(|(h, l)| h - l).collect();
     let at = |u: usize, v: usize| range[(v - y0) * rw + (u - x0)];
     let mut out = Vec::new();
     for v in y0 + 1..y1 - 1 {
