@@ -250,6 +250,12 @@ pub(crate) enum BenchWhat {
     Validation {
         /// The folder holding the recordings, e.g. the lab's shared validation set.
         dir: PathBuf,
+        /// Change each recording's frames first, as a camera and its software may save them:
+        /// `gamma:G` (an encoding curve), `12-bit` (12-bit levels in a 16-bit file), `stuck:N`
+        /// (N hot and dead pixels), `smoothed-noise:S` (noise of σ S grey levels correlated
+        /// between neighbours). Repeat to combine, in order.
+        #[arg(long = "saved-as", value_name = "HOW")]
+        saved_as: Vec<impactcam::bench::saved_as::SavedAs>,
     },
     /// The analysis on non-ideal rigs drawn at random (roll, mirror tilt, the direct camera's
     /// pitch and yaw, perspective, lens; varied looks), each analysed with its exact map, with

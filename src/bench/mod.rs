@@ -6,6 +6,7 @@ pub mod analysis;
 pub mod capture;
 pub mod relay;
 pub mod rigs;
+pub mod saved_as;
 pub mod soak;
 pub mod validation;
 

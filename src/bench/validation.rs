@@ -6,10 +6,34 @@
 //! Each recording is also analysed with the maps `calibrate` finds on it, started from the
 //! shorthand an experimenter would type.
 
+use super::saved_as::{write_changed, SavedAs};
 use crate::config::{Config, SphereOverride, ViewGeometry};
 use serde_json::Value;
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// A folder of the bench's own under the system's temporary directory, removed when dropped.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new() -> Result<TempDir, String> {
+        let dir = std::env::temp_dir().join(format!(
+            "impactcam-validation-{}-{}",
+            std::process::id(),
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_nanos())
+        ));
+        std::fs::create_dir(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        Ok(TempDir(dir))
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
 
 /// One recording's comparison, as printed.
 struct Row {
@@ -140,13 +164,12 @@ fn read_json(path: &Path) -> Result<Value, String> {
 }
 
 /// Compares one recording's report with its truth.
-fn compare(dir: &Path) -> Result<Figures, String> {
+fn compare(dir: &Path, frames: &Path) -> Result<Figures, String> {
     let cal = read_json(&dir.join("calibration.json"))?;
     let truth = read_json(&dir.join("truth.json"))?;
     let cfg = config_from_calibration(&cal)?;
-    let report =
-        crate::experiment::analyze_path(&dir.join("frames.tif"), Some(&cfg), &mut |_, _| {})
-            .map_err(|e| format!("no result: {e}"))?;
+    let report = crate::experiment::analyze_path(frames, Some(&cfg), &mut |_, _| {})
+        .map_err(|e| format!("no result: {e}"))?;
     let report = serde_json::to_value(&report).map_err(|e| e.to_string())?;
     let imp = &truth["impact"];
     let mut f = Figures::default();
@@ -270,17 +293,17 @@ struct WithCalibrate {
 /// recording itself, started from the shorthand; and every velocity and spin component's
 /// error / σ with those maps (what a turn or scale the maps get wrong shows in, and e and ψ
 /// do not).
-fn with_calibrate(dir: &Path) -> Result<WithCalibrate, String> {
+fn with_calibrate(dir: &Path, frames: &Path) -> Result<WithCalibrate, String> {
     let cal = read_json(&dir.join("calibration.json"))?;
     let truth = read_json(&dir.join("truth.json"))?;
     let mut cfg = config_from_calibration(&cal)?;
     cfg.geometry.direct = cfg.geometry.direct.as_ref().and_then(shorthand_of);
     cfg.geometry.mirror = cfg.geometry.mirror.as_ref().and_then(shorthand_of);
-    let tiff = dir.join("frames.tif");
-    let (found, _) = crate::calibrate::calibrate_path(&tiff, Some(&cfg))
+    let tiff = frames;
+    let (found, _) = crate::calibrate::calibrate_path(tiff, Some(&cfg))
         .map_err(|e| format!("calibrate: {e}"))?;
     cfg.geometry = found.geometry;
-    let report = crate::experiment::analyze_path(&tiff, Some(&cfg), &mut |_, _| {})
+    let report = crate::experiment::analyze_path(tiff, Some(&cfg), &mut |_, _| {})
         .map_err(|e| format!("no result: {e}"))?;
     let imp = &truth["impact"];
     let scalars = [
@@ -309,7 +332,9 @@ fn with_calibrate(dir: &Path) -> Result<WithCalibrate, String> {
 }
 
 /// The comparison over every recording (a folder holding `truth.json`) under `dir`.
-pub fn validation(dir: &Path) -> Result<String, String> {
+/// `saved_as`: how each recording's frames are changed first (`saved_as`; none: as rendered),
+/// written to a temporary folder that is removed afterwards.
+pub fn validation(dir: &Path, saved_as: &[SavedAs]) -> Result<String, String> {
     let mut sessions: Vec<_> = std::fs::read_dir(dir)
         .map_err(|e| format!("{}: {e}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -322,6 +347,27 @@ pub fn validation(dir: &Path) -> Result<String, String> {
             dir.display()
         ));
     }
+    // The frames each recording is analysed from: its own, or changed into a folder of the
+    // bench's own that goes when it is done.
+    let changed = if saved_as.is_empty() {
+        None
+    } else {
+        let tmp = TempDir::new()?;
+        for p in &sessions {
+            let name = p.file_name().map(|n| n.to_os_string()).unwrap_or_default();
+            let out = tmp.0.join(name).with_extension("tif");
+            write_changed(&p.join("frames.tif"), saved_as, &out)
+                .map_err(|e| format!("{}: {e}", p.display()))?;
+        }
+        Some(tmp)
+    };
+    let frames_of = |p: &Path| match &changed {
+        Some(tmp) => tmp
+            .0
+            .join(p.file_name().unwrap_or_default())
+            .with_extension("tif"),
+        None => p.join("frames.tif"),
+    };
     let rows: Vec<Row> = sessions
         .iter()
         .map(|p| Row {
@@ -329,7 +375,7 @@ pub fn validation(dir: &Path) -> Result<String, String> {
                 .file_name()
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default(),
-            outcome: compare(p),
+            outcome: compare(p, &frames_of(p)),
         })
         .collect();
     let mut out = String::new();
@@ -338,6 +384,9 @@ pub fn validation(dir: &Path) -> Result<String, String> {
         "independent recordings under {} (errors against their truth; z = error / reported σ)",
         dir.display()
     );
+    if !saved_as.is_empty() {
+        let _ = writeln!(out, "frames saved as: {saved_as:?}, in that order");
+    }
     let _ = writeln!(
         out,
         "{:<6} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9} {:>8}  note",
@@ -413,7 +462,7 @@ pub fn validation(dir: &Path) -> Result<String, String> {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        match with_calibrate(p) {
+        match with_calibrate(p, &frames_of(p)) {
             Ok(WithCalibrate {
                 scalars: v,
                 components,

@@ -58,10 +58,11 @@ pub(crate) fn bench(what: BenchWhat) -> Result<i32> {
             print!("{}", impactcam::bench::rigs::rigs(experiments, &dir));
             Ok(0)
         }
-        BenchWhat::Validation { dir } => {
+        BenchWhat::Validation { dir, saved_as } => {
             print!(
                 "{}",
-                impactcam::bench::validation::validation(&dir).map_err(anyhow::Error::msg)?
+                impactcam::bench::validation::validation(&dir, &saved_as)
+                    .map_err(anyhow::Error::msg)?
             );
             Ok(0)
         }

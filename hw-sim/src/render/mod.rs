@@ -63,7 +63,12 @@ impl Renderer {
         // From a generator of their own: the other draws stay as they were.
         let mut places = Rng::new(seed ^ 0x57AC_D0E5);
         let stuck = (0..cfg.stuck_pixels)
-            .map(|k| ((places.next_u64() % npx.max(1) as u64) as usize, k % 2 == 0))
+            .map(|k| {
+                (
+                    (places.next_u64() % npx.max(1) as u64) as usize,
+                    k.is_multiple_of(2),
+                )
+            })
             .collect();
         Renderer {
             scene,
