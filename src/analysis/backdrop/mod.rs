@@ -301,7 +301,10 @@ fn stuck_pixels(frames: &[GreyImage], rect: [usize; 4]) -> Vec<usize> {
     let mut hi = vec![f32::MIN; rw * (y1 - y0)];
     for f in frames {
         for v in y0..y1 {
-            let row = &f.data[v * f.width + x0..v * f.width + x1];
+            // (Every sample has the recording's size; a frame that had not is passed over.)
+            let Some(row) = f.data.get(v * f.width + x0..v * f.width + x1) else {
+                continue;
+            };
             let at = (v - y0) * rw;
             for ((g, l), h) in row
                 .iter()
