@@ -389,7 +389,7 @@ pub fn validation(dir: &Path, saved_as: &[SavedAs]) -> Result<String, String> {
     }
     let _ = writeln!(
         out,
-        "{:<6} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9} {:>8}  note",
+        "{:<6} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9} {:>8}  its estimate, or why none",
         "", "Δe", "Δψ1", "Δψ2", "Δβ", "centre RMS", "found", "max |z|"
     );
     let mut all_z = Vec::new();
@@ -424,6 +424,13 @@ pub fn validation(dir: &Path, saved_as: &[SavedAs]) -> Result<String, String> {
                     .filter(|z| z.is_finite())
                     .collect();
                 let max_z = zs.iter().fold(0.0f64, |m, z| m.max(z.abs()));
+                // Which estimate that is, so that a large one shows where to look.
+                let largest = f
+                    .estimates
+                    .iter()
+                    .filter(|e| e.2.is_finite())
+                    .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()))
+                    .map_or(String::new(), |e| e.0.clone());
                 all_z.extend(zs);
                 far.extend(
                     f.estimates
@@ -433,7 +440,7 @@ pub fn validation(dir: &Path, saved_as: &[SavedAs]) -> Result<String, String> {
                 );
                 let _ = writeln!(
                     out,
-                    "{:<6} {:>9} {:>9} {:>9} {:>9} {:>7.3} px {:>4}/{:<4} {:>8.1}",
+                    "{:<6} {:>9} {:>9} {:>9} {:>9} {:>7.3} px {:>4}/{:<4} {:>8.1}  {largest}",
                     r.name,
                     fmt(get("e")),
                     fmt(get("psi1")),
