@@ -241,8 +241,8 @@ fn centres_where_apart(
 /// about 1 % of the frame; a side-lit look): the pixels are found and said, and the centres
 /// hold as on a clean sensor. A stuck pixel on a disc's ring is a residual the size of the
 /// sphere's contrast in every frame that brings the edge over it; before the backdrop found
-/// them this experiment gave centre RMS 0.074 px and one centre 0.54 px off (0.022 and 0.075
-/// after).
+/// them this experiment gave centre RMS 0.074 px and one centre 0.54 px off (after: 0.022 and
+/// 0.075, 0.024 and 0.118 in another run; hw-sim records in real time, so runs differ).
 #[test]
 fn a_sensors_stuck_pixels_are_left_out() {
     let t = tempfile::tempdir().unwrap();

@@ -76,23 +76,14 @@ pub fn write_changed(frames: &Path, how: &[SavedAs], out: &Path) -> Result<(), S
     let (w, h) = (info.width as usize, info.height as usize);
     let npx = w * h;
     let mut rng = hw_sim::Rng::new(SEED);
-    // Distinct places (at most every pixel), alternately hot and dead.
     let wanted: usize = how
         .iter()
         .map(|s| match s {
             SavedAs::Stuck(n) => *n as usize,
             _ => 0,
         })
-        .sum::<usize>()
-        .min(npx);
-    let mut taken = std::collections::HashSet::new();
-    let mut stuck: Vec<(usize, bool)> = Vec::with_capacity(wanted);
-    while stuck.len() < wanted {
-        let k = (rng.next_u64() % npx as u64) as usize;
-        if taken.insert(k) {
-            stuck.push((k, stuck.len().is_multiple_of(2)));
-        }
-    }
+        .sum();
+    let stuck = hw_sim::render::stuck_places(SEED, wanted, npx);
     let wide = how.contains(&SavedAs::TwelveBit);
     let top = if wide { 4095.0 } else { 255.0 };
     let io = |e: std::io::Error| format!("{}: {e}", out.display());

@@ -61,15 +61,7 @@ impl Renderer {
         let look = cfg.look.clone().map(|l| LookState::new(l, &scene, &cfg));
         let flicker = flicker::Flicker::new(&cfg, seed);
         // From a generator of their own: the other draws stay as they were.
-        let mut places = Rng::new(seed ^ 0x57AC_D0E5);
-        let stuck = (0..cfg.stuck_pixels)
-            .map(|k| {
-                (
-                    (places.next_u64() % npx.max(1) as u64) as usize,
-                    k.is_multiple_of(2),
-                )
-            })
-            .collect();
+        let stuck = stuck_places(seed ^ 0x57AC_D0E5, cfg.stuck_pixels as usize, npx);
         Renderer {
             scene,
             cfg,
@@ -538,3 +530,20 @@ pub(crate) fn write_pixel(buf: &mut [u8], idx: usize, grey8: f64, bpp: usize) {
 
 #[cfg(test)]
 mod golden;
+
+/// `n` distinct pixels of a frame of `npx` (at most every one), drawn from `seed`, each with
+/// whether it is stuck hot (at the top of the range) or dead (at 0), alternately: a sensor's
+/// defective pixels, for `sim.stuck_pixels` and for a bench that saves other frames so.
+pub fn stuck_places(seed: u64, n: usize, npx: usize) -> Vec<(usize, bool)> {
+    let mut rng = Rng::new(seed);
+    let n = n.min(npx);
+    let mut taken = std::collections::HashSet::with_capacity(n);
+    let mut out = Vec::with_capacity(n);
+    while out.len() < n {
+        let k = (rng.next_u64() % npx as u64) as usize;
+        if taken.insert(k) {
+            out.push((k, out.len().is_multiple_of(2)));
+        }
+    }
+    out
+}

@@ -24,6 +24,39 @@ fn beta_is_null_where_psi1_is_not_clear_of_zero() {
     assert_eq!(warnings.len(), 1);
 }
 
+/// The four phases' fits of spheres meeting at contact (a at −r, b at +r along x) at t = 0
+/// with velocities [a before, b before, a after, b after], mm/s, falling under `g`: 14 exact
+/// samples a side, 1 ms apart.
+fn noise_free_fits(r: f64, g: f64, v: [V3; 4]) -> Fits {
+    let side = |p0: V3, v: V3, sign: f64| {
+        let ts: Vec<f64> = (1..15).map(|k| sign * k as f64 * 1e-3).collect();
+        let line = |i: usize| -> Series {
+            let gi = if i == 1 { -g } else { 0.0 };
+            ts.iter()
+                .map(|&t| (t, p0[i] + v[i] * t + 0.5 * gi * t * t))
+                .collect()
+        };
+        SideFit::fit(&[line(0), line(1), line(2)], 0.0, g)
+    };
+    let (pa, pb) = (V3::new(-r, 0.0, 0.0), V3::new(r, 0.0, 0.0));
+    [
+        side(pa, v[0], -1.0),
+        side(pb, v[1], -1.0),
+        side(pa, v[2], 1.0),
+        side(pb, v[3], 1.0),
+    ]
+}
+
+/// A spin known exactly: no covariance, no error sources.
+fn exact_spin(omega: V3) -> SpinFit {
+    SpinFit {
+        omega,
+        cov: nalgebra::Matrix3::zeros(),
+        pairs: 10,
+        frame_influence: Vec::new(),
+    }
+}
+
 /// The passes' difference of a spin before the impact (`widen_by_first_pass`) moves ψ1 in its
 /// σ whether or not the spins after follow the impulse: its source is none of the impulse's
 /// own terms, which `spin_variance` leaves to the velocities where they do. (Until session 49
@@ -46,36 +79,14 @@ fn the_passes_difference_of_a_spin_before_the_impact_is_in_psi1s_sigma_when_coup
     // An oblique impact, noise-free: b slips past a along y and z.
     let (va, vb) = (V3::new(800.0, 150.0, 20.0), V3::new(-700.0, -100.0, -30.0));
     let (va2, vb2) = (V3::new(-500.0, 100.0, 10.0), V3::new(600.0, -50.0, -20.0));
-    let side = |p0: V3, v: V3, sign: f64| {
-        let ts: Vec<f64> = (1..15).map(|k| sign * k as f64 * 1e-3).collect();
-        let line = |i: usize| -> Series {
-            let gi = if i == 1 { -g } else { 0.0 };
-            ts.iter()
-                .map(|&t| (t, p0[i] + v[i] * t + 0.5 * gi * t * t))
-                .collect()
-        };
-        SideFit::fit(&[line(0), line(1), line(2)], 0.0, g)
-    };
-    let (pa, pb) = (V3::new(-r, 0.0, 0.0), V3::new(r, 0.0, 0.0));
-    let fits: Fits = [
-        side(pa, va, -1.0),
-        side(pb, vb, -1.0),
-        side(pa, va2, 1.0),
-        side(pb, vb2, 1.0),
-    ];
-    let spin = |w: V3| SpinFit {
-        omega: w,
-        cov: nalgebra::Matrix3::zeros(),
-        pairs: 10,
-        frame_influence: Vec::new(),
-    };
+    let fits = noise_free_fits(r, g, [va, vb, va2, vb2]);
     let omega = [
         V3::new(5.0, -20.0, 40.0),
         V3::new(-10.0, 15.0, -35.0),
         V3::new(5.0, -20.0, 40.0),
         V3::new(-10.0, 15.0, -35.0),
     ];
-    let mut spins = omega.map(spin);
+    let mut spins = omega.map(exact_spin);
     // The passes gave b's spin before 300 rad/s apart about z.
     widen_by_first_pass(&mut spins[1], omega[1] - V3::new(0.0, 0.0, 300.0), 1);
     let plain: Bodies = [r; 2].into();
@@ -110,30 +121,9 @@ fn a_large_spin_term_reaches_psi1s_sigma_where_psi1_turns_back() {
     let r = 3.175;
     let (va, vb) = (V3::new(800.0, 0.0, 0.0), V3::new(-700.0, 1e-3, 0.0));
     let (va2, vb2) = (V3::new(-600.0, 0.0, 0.0), V3::new(700.0, 1e-3, 0.0));
-    let side = |p0: V3, v: V3, sign: f64| {
-        let ts: Vec<f64> = (1..15).map(|k| sign * k as f64 * 1e-3).collect();
-        let line = |i: usize| -> Series {
-            let gi = if i == 1 { -g } else { 0.0 };
-            ts.iter()
-                .map(|&t| (t, p0[i] + v[i] * t + 0.5 * gi * t * t))
-                .collect()
-        };
-        SideFit::fit(&[line(0), line(1), line(2)], 0.0, g)
-    };
-    let (pa, pb) = (V3::new(-r, 0.0, 0.0), V3::new(r, 0.0, 0.0));
-    let fits: Fits = [
-        side(pa, va, -1.0),
-        side(pb, vb, -1.0),
-        side(pa, va2, 1.0),
-        side(pb, vb2, 1.0),
-    ];
+    let fits = noise_free_fits(r, g, [va, vb, va2, vb2]);
     let omega = [V3::zeros(); 4];
-    let mut spins = omega.map(|w| SpinFit {
-        omega: w,
-        cov: nalgebra::Matrix3::zeros(),
-        pairs: 10,
-        frame_influence: Vec::new(),
-    });
+    let mut spins = omega.map(exact_spin);
     let term = V3::new(0.0, 0.0, 100.0);
     spins[1].cov = term * term.transpose();
     spins[1].frame_influence.push((7, term));
