@@ -36,6 +36,10 @@ pub(super) fn analyse_case(
     if let Some(f) = truth["look"]["family"].as_str() {
         out.look_family = f.into();
     }
+    // A silhouette (lit from behind only) shows no dot, and a rig without markers has none.
+    let silhouette = truth["look"]["backlit"].as_bool() == Some(true)
+        && truth["look"]["backlit_front_light"].as_bool() != Some(true);
+    out.no_dots_seen = silhouette || cfg.sim.markers_per_sphere == 0;
     // Baseline for the analysis time: reading the same frames from disk.
     let mut reader = SessionReader::open(session).map_err(|e| e.to_string())?;
     let t0 = Instant::now();

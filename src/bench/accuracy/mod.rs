@@ -199,6 +199,9 @@ pub struct CaseResult {
     /// the ones where both were measured there.
     pub apart_frames: usize,
     pub apart_measured: usize,
+    /// No dot was drawn where a camera could see it (by the truth: a backlit silhouette with no
+    /// lamp in front, or no markers at all), so no spin can be measured from the frames.
+    pub no_dots_seen: bool,
 }
 
 /// Records case `c` under `dir`, analyses it and compares it with the truth; the session is

@@ -265,12 +265,7 @@ pub fn table(results: &[(Case, CaseResult)]) -> String {
         );
     }
     let _ = writeln!(s, "{}", spin_goals_line(results));
-    let spins_measured = ok.iter().filter(|r| r.psi1.is_some()).count();
-    let _ = writeln!(
-        s,
-        "spin measured in {spins_measured} of {} experiments (ψ, β need all four phases)",
-        ok.len()
-    );
+    let _ = writeln!(s, "{}", spin_count_line(&ok));
     let z = all(&|r| r.z.clone());
     let _ = writeln!(
         s,
@@ -461,4 +456,30 @@ pub(super) fn spin_goals_line(results: &[(Case, CaseResult)]) -> String {
         max(&beta),
         above(&beta, 0.15)
     )
+}
+
+/// How many experiments measured a spin (ψ1 reported: all four phases), and the same among
+/// those whose frames show dots at all. Why both: a backlit silhouette shows no dot, so no
+/// spin can be measured from it however good the analysis; the count over the rest says how
+/// often the analysis measures a spin it could, and a spin reported where no dot was drawn
+/// would be invented (counted apart, which should be none).
+pub(super) fn spin_count_line(ok: &[&CaseResult]) -> String {
+    let measured =
+        |rs: &mut dyn Iterator<Item = &&CaseResult>| rs.filter(|r| r.psi1.is_some()).count();
+    let with_dots: Vec<&&CaseResult> = ok.iter().filter(|r| !r.no_dots_seen).collect();
+    let without = ok.len() - with_dots.len();
+    let mut line = format!(
+        "spin measured in {} of {} experiments (ψ, β need all four phases)",
+        measured(&mut ok.iter()),
+        ok.len()
+    );
+    if without > 0 {
+        line += &format!(
+            "; in {} of the {} whose frames show dots ({without} show none: backlit silhouettes or no markers; a spin reported in {} of those)",
+            measured(&mut with_dots.into_iter()),
+            ok.len() - without,
+            measured(&mut ok.iter().filter(|r| r.no_dots_seen)),
+        );
+    }
+    line
 }

@@ -134,6 +134,34 @@ fn psi_and_beta_on_the_goals_data_count_beta_only_where_psi1_says_something() {
         );
 }
 
+/// The spin count says apart how many experiments' frames show no dot at all (a backlit
+/// silhouette), counts the measured spins over the rest too, and counts a spin reported
+/// where no dot was drawn; with every experiment showing dots it is the plain count.
+#[test]
+fn the_spin_count_sets_apart_experiments_that_show_no_dot() {
+    let case = |spin: bool, no_dots_seen: bool| CaseResult {
+        psi1: spin.then_some((0.0, 0.01)),
+        no_dots_seen,
+        ..Default::default()
+    };
+    let results = [
+        case(true, false),
+        case(true, false),
+        case(false, false),
+        case(false, true),
+        case(true, true),
+    ];
+    let all: Vec<&CaseResult> = results.iter().collect();
+    assert_eq!(
+        table::spin_count_line(&all),
+        "spin measured in 3 of 5 experiments (ψ, β need all four phases); in 2 of the 3 whose frames show dots (2 show none: backlit silhouettes or no markers; a spin reported in 1 of those)"
+    );
+    assert_eq!(
+        table::spin_count_line(&all[..3]),
+        "spin measured in 2 of 3 experiments (ψ, β need all four phases)"
+    );
+}
+
 /// `--looks varied` reports every family it drew, and pooled: a family dropped from the
 /// draw or from the table fails here.
 #[test]
