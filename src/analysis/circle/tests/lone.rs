@@ -197,6 +197,20 @@ fn a_fit_started_far_from_a_blurred_disc_is_tried_again_from_where_it_went() {
     assert!(worst < 0.2, "worst centre {worst:.3} px from the truth");
 }
 
+/// hw-sim's lab defocused by 1.1 px, lit from 30° to one side (ambient 0.3), its dots painted
+/// at a fifth of the shading (multiplicative) and blurred with it.
+fn defocused_with_dark_dots() -> hw_sim::LabConfig {
+    hw_sim::LabConfig {
+        look: Some(hw_sim::Look {
+            defocus_sigma_px: 1.1,
+            marker_paint: hw_sim::look::MarkerPaint::Multiplicative,
+            marker_factor: 0.2,
+            ..lit_from(30.0, 60.0, 0.3)
+        }),
+        ..Default::default()
+    }
+}
+
 /// Blurred dots no marker search finds: a sphere defocused by 1.1 px and lit from 30° to one
 /// side, eight dots painted at a fifth of the shading (multiplicative) and blurred with it,
 /// noise σ = 2, no masks, 40 phases. Each dot is 5–15σ darker over a dozen pixels, hardly a
@@ -208,15 +222,7 @@ fn a_fit_started_far_from_a_blurred_disc_is_tried_again_from_where_it_went() {
 /// quadrature, is open (docs/accuracy.md).
 #[test]
 fn blurred_dots_left_in_the_ring_do_not_pull_the_centre() {
-    let cfg = hw_sim::LabConfig {
-        look: Some(hw_sim::Look {
-            defocus_sigma_px: 1.1,
-            marker_paint: hw_sim::look::MarkerPaint::Multiplicative,
-            marker_factor: 0.2,
-            ..lit_from(30.0, 60.0, 0.3)
-        }),
-        ..Default::default()
-    };
+    let cfg = defocused_with_dark_dots();
     let errs = lone_sphere_errors(&cfg, 8);
     assert!(errs.len() >= 30, "only {} of 40 fits settled", errs.len());
     let plain: Vec<[f64; 2]> = errs.iter().map(|e| e.0).collect();
@@ -232,15 +238,7 @@ fn blurred_dots_left_in_the_ring_do_not_pull_the_centre() {
 /// which the median carries and the known size would not).
 #[test]
 fn a_blurred_disc_held_at_its_neighbours_radius_scatters_less() {
-    let cfg = hw_sim::LabConfig {
-        look: Some(hw_sim::Look {
-            defocus_sigma_px: 1.1,
-            marker_paint: hw_sim::look::MarkerPaint::Multiplicative,
-            marker_factor: 0.2,
-            ..lit_from(30.0, 60.0, 0.3)
-        }),
-        ..Default::default()
-    };
+    let cfg = defocused_with_dark_dots();
     let bg = cfg.background_grey;
     let renders = lone_sphere_renders(&cfg, 8);
     let free: Vec<(usize, CircleFit)> = renders
