@@ -35,7 +35,7 @@ mod second_pass;
 pub mod source;
 pub mod stages;
 mod survey;
-pub use survey::{blob_survey, blobs, measure};
+pub use survey::{blob_survey, blobs, measure, BlobSurvey};
 pub mod spin;
 mod spin_search;
 pub mod spin_tracks;

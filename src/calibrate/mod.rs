@@ -39,7 +39,7 @@ use crate::config::Config;
 use bundle::{fit_bundle, LensFrame};
 use flights::{diameter_scale, flights, free_fall, FreeFall};
 use maps::{direct_matrix, distance, mirror_matrix, view_geometry, x_sign};
-use provisional::{align_mirror, line_fit, local_scale, set_scale, x_index, MirrorAxes};
+use provisional::{first_flights, line_fit, x_index, MirrorAxes};
 pub use sigma::SCALES_AGREE_SIGMA;
 use sigma::{combine_scales, degrees_known, percent_known, widened_by};
 
@@ -295,64 +295,8 @@ pub fn calibrate(
         }
         line_fit(&pairs)
     });
-    // The direct view's scale must be within 10 % for its discs to be taken for spheres. Tried
-    // in turn: the config's, then the blobs' median size (which the light biases: a highlight
-    // raises the threshold and shrinks the blob) and 15 % either side of it.
-    let mean_diameter_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
-    let config_scale = local_scale(&direct_cfg).unwrap_or(1.0);
-    let mut scales = vec![config_scale];
-    let mut sizes: Vec<f64> = survey
-        .iter()
-        .flat_map(|f| f[di].iter().map(|b| b.1))
-        .collect();
-    if sizes.len() >= 3 {
-        sizes.sort_by(f64::total_cmp);
-        let blob = sizes[sizes.len() / 2] / mean_diameter_mm;
-        for k in [1.0, 1.15, 1.0 / 1.15] {
-            let c = blob * k;
-            if scales.iter().all(|x| (c / x - 1.0).abs() > 0.05) {
-                scales.push(c);
-            }
-        }
-    }
-    let mut tried = Vec::new();
-    let mut found = None;
-    for s_d in scales {
-        let mut trial = cfg.clone();
-        if let Some(v) = trial.geometry.direct.as_mut() {
-            set_scale(v, s_d);
-        }
-        let direct_now = trial.geometry.direct.clone();
-        if let (Some(m), Some(d)) = (trial.geometry.mirror.as_mut(), direct_now.as_ref()) {
-            match mirror_line {
-                Some(line) => align_mirror(d, m, line),
-                None => {
-                    let ratio = local_scale(m).unwrap_or(config_scale) / config_scale;
-                    set_scale(m, s_d * ratio);
-                }
-            }
-        }
-        let attempt = analysis::measure(src, &trial)
-            .map_err(|e| e.to_string())
-            .map(|(views, obs)| (views, whole_discs_only(obs)))
-            .and_then(|(views, obs)| {
-                let (split, phases) = flights(&obs, di)?;
-                Ok((views, obs, split, phases))
-            });
-        match attempt {
-            Ok(ok) => {
-                found = Some((trial, ok));
-                break;
-            }
-            Err(e) => tried.push(format!("at {s_d:.3} px/mm: {e}")),
-        }
-    }
-    let Some((cfg, (views, obs, split_frame, phases))) = found else {
-        return Err(data(format!(
-            "no provisional scale gives flights in the direct view ({})",
-            tried.join("; ")
-        )));
-    };
+    let (cfg, (views, obs, split_frame, phases)) =
+        first_flights(src, cfg, &direct_cfg, &survey, di, mirror_line).map_err(data)?;
     let cfg = &cfg;
     // The other recordings, measured with the same provisional geometry; their frames follow
     // the first's, their flights too (four per recording: sphere k % 2).

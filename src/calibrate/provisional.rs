@@ -1,10 +1,20 @@
 //! The provisional geometry calibrate starts from: the config's views with their scale set
 //! from the data where needed, and the mirror's x made to agree with the direct view's, so that
-//! the spheres are labelled alike in both views before anything is fitted.
+//! the spheres are labelled alike in both views before anything is fitted; and the first
+//! recording measured under the first such geometry that shows flights (`first_flights`).
 
+use super::flights::flights;
+use super::whole_discs_only;
 use crate::analysis::calibration::fit_line;
 use crate::analysis::geometry::View;
-use crate::config::ViewGeometry;
+use crate::analysis::tracking::FrameObs;
+use crate::analysis::BlobSurvey;
+use crate::analysis::{self, FrameSource};
+use crate::config::{Config, ViewGeometry};
+
+/// `first_flights`: the provisional config, its views, the measurements, the split frame and
+/// the four flights' frames.
+pub(super) type FirstFlights = (Config, (Vec<View>, Vec<FrameObs>, usize, [Vec<usize>; 4]));
 
 /// Least-squares line y = a·x + b through (x, y) pairs, when they span 20 px of x and lie
 /// within 1.5 px RMS of it (blobs of clutter paired with spheres do not).
@@ -119,4 +129,72 @@ pub(super) fn set_scale(v: &mut ViewGeometry, px_per_mm: f64) {
     if let Some(mm) = v.matrix_px_per_mm.as_mut() {
         *mm = mm.map(|r| r.map(|x| x * k));
     }
+}
+
+/// What the first recording shows under the first provisional geometry that gives flights in
+/// the direct view: that config, its views, the frames' measurements (whole discs only), the
+/// frame the flights split at and the four flights' frames. The direct view's scale is tried
+/// in turn (`calibrate`'s provisional geometry), the mirror set from `mirror_line` (its x
+/// against the direct view's) or kept at its ratio to the direct view; Err says each scale
+/// tried and why it gave no flights.
+pub(super) fn first_flights(
+    src: &mut dyn FrameSource,
+    cfg: &Config,
+    direct_cfg: &ViewGeometry,
+    survey: &BlobSurvey,
+    di: usize,
+    mirror_line: Option<(f64, f64)>,
+) -> Result<FirstFlights, String> {
+    // The direct view's scale must be within 10 % for its discs to be taken for spheres. Tried
+    // in turn: the config's, then the blobs' median size (which the light biases: a highlight
+    // raises the threshold and shrinks the blob) and 15 % either side of it.
+    let mean_diameter_mm = 0.5 * (cfg.spheres.sphere(0).0 + cfg.spheres.sphere(1).0);
+    let config_scale = local_scale(direct_cfg).unwrap_or(1.0);
+    let mut scales = vec![config_scale];
+    let mut sizes: Vec<f64> = survey
+        .iter()
+        .flat_map(|f| f[di].iter().map(|b| b.1))
+        .collect();
+    if sizes.len() >= 3 {
+        sizes.sort_by(f64::total_cmp);
+        let blob = sizes[sizes.len() / 2] / mean_diameter_mm;
+        for k in [1.0, 1.15, 1.0 / 1.15] {
+            let c = blob * k;
+            if scales.iter().all(|x| (c / x - 1.0).abs() > 0.05) {
+                scales.push(c);
+            }
+        }
+    }
+    let mut tried = Vec::new();
+    for s_d in scales {
+        let mut trial = cfg.clone();
+        if let Some(v) = trial.geometry.direct.as_mut() {
+            set_scale(v, s_d);
+        }
+        let direct_now = trial.geometry.direct.clone();
+        if let (Some(m), Some(d)) = (trial.geometry.mirror.as_mut(), direct_now.as_ref()) {
+            match mirror_line {
+                Some(line) => align_mirror(d, m, line),
+                None => {
+                    let ratio = local_scale(m).unwrap_or(config_scale) / config_scale;
+                    set_scale(m, s_d * ratio);
+                }
+            }
+        }
+        let attempt = analysis::measure(src, &trial)
+            .map_err(|e| e.to_string())
+            .map(|(views, obs)| (views, whole_discs_only(obs)))
+            .and_then(|(views, obs)| {
+                let (split, phases) = flights(&obs, di)?;
+                Ok((views, obs, split, phases))
+            });
+        match attempt {
+            Ok(ok) => return Ok((trial, ok)),
+            Err(e) => tried.push(format!("at {s_d:.3} px/mm: {e}")),
+        }
+    }
+    Err(format!(
+        "no provisional scale gives flights in the direct view ({})",
+        tried.join("; ")
+    ))
 }
