@@ -32,6 +32,10 @@ pub struct GreyImage {
     /// it covers a pixel the normalised frame holds its shading minus this; None where nothing
     /// was subtracted (all zero).
     pub ground: Option<Arc<[f32]>>,
+    /// The noise σ `ground` keeps from the frames it was estimated from, grey levels
+    /// (`Backdrop::estimate`: a quantile of a few dozen keeps about a quarter of theirs): how far
+    /// it may differ from pixel to pixel where nothing stands. 0 where nothing was subtracted.
+    pub ground_noise: f32,
     /// Views where this frame's light differed from the backdrop's (a flickering lamp,
     /// `backdrop`): there the backdrop's shape was subtracted at that gain, and what a sphere
     /// hides is `gain·ground`. Empty under a steady lamp.
@@ -68,6 +72,7 @@ impl GreyImage {
             height: 0,
             data: Vec::new(),
             ground: None,
+            ground_noise: 0.0,
             ground_light: Vec::new(),
             inverted: Arc::from([]),
             unmeasured: Vec::new(),
@@ -79,6 +84,7 @@ impl GreyImage {
         self.width = width;
         self.height = height;
         self.ground = None;
+        self.ground_noise = 0.0;
         self.ground_light.clear();
         self.inverted = Arc::from([]);
         self.unmeasured.clear();

@@ -36,6 +36,44 @@ const GROUND_QUANTILE: f64 = 0.2;
 /// and a noise-free render's ground (range 0) never counts.
 const STUCK_NEIGHBOUR_RANGE: f32 = 3.0;
 
+/// Φ⁻¹(1 − `GROUND_QUANTILE`): the standard normal's quantile the still is taken at, in σ.
+const GROUND_QUANTILE_Z: f64 = 0.8416;
+
+/// The noise σ a still keeps of its frames' (`GreyImage::ground_noise`): the quantile q of k
+/// samples of noise σ scatters by √(q(1 − q)/k)/φ(Φ⁻¹(q))·σ (the order statistic's asymptotic
+/// spread; 0.26 at 31 samples). Why not measured on the still itself: its levels are the
+/// frames', whole grey levels, and its pixel-to-pixel differences a level or two, which a
+/// median quantises to 0 or 1 — twice the true figure at σ = 2.
+fn still_noise_ratio(samples: usize) -> f64 {
+    let q = GROUND_QUANTILE;
+    let density =
+        (-0.5 * GROUND_QUANTILE_Z * GROUND_QUANTILE_Z).exp() / std::f64::consts::TAU.sqrt();
+    (q * (1.0 - q) / samples.max(1) as f64).sqrt() / density
+}
+
+/// The frames' noise σ over a view, grey levels: the median absolute change of a pixel from
+/// one sampled frame to the next, over √2 (the spheres pass over a few of the pixels only);
+/// every other column, which is plenty.
+fn frames_noise(frames: &[GreyImage], rect: [usize; 4]) -> f64 {
+    let [x0, y0, x1, y1] = rect;
+    let mut steps: Vec<f32> = frames
+        .windows(2)
+        .flat_map(|p| {
+            (y0..y1).flat_map(move |v| {
+                (x0..x1)
+                    .step_by(2)
+                    .map(move |u| (p[1].at(u, v) - p[0].at(u, v)).abs())
+            })
+        })
+        .collect();
+    if steps.is_empty() {
+        return 0.0;
+    }
+    let mid = steps.len() / 2;
+    let median = *steps.select_nth_unstable_by(mid, f32::total_cmp).1 as f64;
+    1.4826 * median / std::f64::consts::SQRT_2
+}
+
 /// One view's normalisation.
 #[derive(Clone, Debug)]
 struct ViewBackdrop {
@@ -61,6 +99,9 @@ pub struct Backdrop {
     /// The frame's `GreyImage::ground`: per pixel, the subtracted backdrop above its view's
     /// level (bright side up); None without a backdrop.
     ground: Option<Arc<[f32]>>,
+    /// `GreyImage::ground_noise`: the largest of the views' frames' noise, times what a still
+    /// keeps of it (`still_noise_ratio`).
+    ground_noise: f32,
     /// The rectangles of the inverted views (`GreyImage::inverted`).
     inverted: Arc<[[usize; 4]]>,
 }
@@ -175,9 +216,19 @@ impl Backdrop {
             .filter(|vb| vb.dark_spheres)
             .map(|vb| vb.rect)
             .collect();
+        let ground_noise = if ground.is_some() {
+            let frames_noise = rects
+                .iter()
+                .map(|&r| frames_noise(&frames, r))
+                .fold(0.0, f64::max);
+            (still_noise_ratio(k) * frames_noise) as f32
+        } else {
+            0.0
+        };
         Ok(Backdrop {
             views: out,
             ground,
+            ground_noise,
             inverted,
         })
     }
@@ -189,6 +240,11 @@ impl Backdrop {
             .ground
             .clone()
             .filter(|g| g.len() == img.width * img.height);
+        img.ground_noise = if img.ground.is_some() {
+            self.ground_noise
+        } else {
+            0.0
+        };
         img.inverted = self.inverted.clone();
         img.unmeasured.clear();
         img.ground_light.clear();

@@ -162,12 +162,14 @@ impl RayLevel {
     };
 }
 
-/// The ground round a disc (`edge_points`): its level, and how far below it a profile must
-/// sink beyond its crossing to show a limb darker than the ground there (`trough`).
+/// The ground round a disc (`edge_points`): its level, how far below it a profile must
+/// sink beyond its crossing to show a limb darker than the ground there (`trough`), and how far
+/// the subtracted backdrop may differ along a ray by its own noise alone (`still_noise`).
 #[derive(Clone, Copy, Debug)]
 pub struct Ground {
     pub level: f64,
     pub trough: f64,
+    pub still_noise: f64,
 }
 
 /// Edge points of the disc around `centre`: along ray k (of `ray_levels.len()`, evenly spaced
@@ -181,7 +183,8 @@ pub struct Ground {
 /// do not average out along a trajectory.
 ///
 /// Nor is a ray whose samples up to its crossing read a static backdrop that differs by more
-/// than `dip` from what it is where the ray starts (`GreyImage::ground`: a tube end's or a
+/// than `dip` (and than the backdrop's own noise, `Ground::still_noise`) from what it is where
+/// the ray starts (`GreyImage::ground`: a tube end's or a
 /// ruler's edge): the sphere hides it, so there the normalised edge is the sphere's shading
 /// less the backdrop, and its crossing lies anywhere. (A backdrop lifted alike along the whole
 /// ray, as a grey ground's vignetting lifts it, only shifts the levels the ray's own rim set.) The grey-level fit models that; the edge points are only its start.
@@ -245,7 +248,7 @@ pub fn edge_points(
             let Some(val) = at(r) else {
                 break;
             };
-            if img.ground_off(u, v, reference) > dip {
+            if img.ground_off(u, v, reference) > dip.max(ground.still_noise) {
                 hidden += 1;
                 break;
             }
@@ -369,6 +372,19 @@ pub const NEIGHBOUR_MARGIN_PX: f64 = 3.0;
 /// samples a ray reads beyond it, reaches 2–3σ.
 const LIMB_TROUGH_NOISE: f64 = 6.0;
 
+/// How many of the subtracted backdrop's noise σ (`GreyImage::ground_noise`) it must change by
+/// along a ray before the ray is taken to cross a static backdrop's edge (`edge_points`). The
+/// backdrop is a quantile of a few dozen sampled frames and keeps about a quarter of their
+/// noise; a disc's rays compare some two thousand of its pixels with the ones where they start
+/// (differences of √2σ), which noise alone takes to 4–5 of those, 6–7σ. Why a floor at all: on
+/// the side of a disc whose shading is close to the ground's (a side-lit sphere over a grey
+/// ground), a tenth of the contrast (`dip`) is below a grey level, and the backdrop's noise
+/// marked such rays as crossing a tube end — the disc then taken as partly hidden, and
+/// unmeasured where its grey-level fit did not settle from the edge points (an independent
+/// render over a ground of 80: one sphere in 8 of a view's first 10 frames, the other view's
+/// names swapped after the impact, e off by 1.9 at 680σ; docs/accuracy.md, session 51).
+const STILL_STEP_NOISE: f64 = 8.0;
+
 /// The ground's noise σ just outside the disc: the median absolute deviation of samples 2.5 px
 /// beyond its edge (what else stands there, the other sphere or a backdrop's edge, is a minority).
 fn ground_noise(
@@ -403,8 +419,8 @@ fn ground_noise(
 
 /// A circle through edge points on rays from a rough centre, where the grey level crosses
 /// halfway between `background` and the shading just inside the edge on that side; and whether
-/// a static backdrop hid part of the edge (rays left out over it): then the fit is only a
-/// start, which the grey-level fit must confirm.
+/// a static backdrop hid part of the edge or the view's border cut it (rays left out there):
+/// then the fit is only a start, which the grey-level fit must confirm.
 ///
 /// Why per side: a sphere lit from one side is bright at its rim there and at the ambient
 /// floor on the other; one level for the whole rim crosses the dark side's edge far inside
@@ -467,8 +483,16 @@ pub fn fit_edges(
             level: background,
             // (At least a grey level: a render without noise shows none.)
             trough: (LIMB_TROUGH_NOISE * ground_noise(img, view, centre, radius_px, rays)).max(1.0),
+            still_noise: STILL_STEP_NOISE * img.ground_noise as f64,
         };
-        let (mut pts, hidden) = edge_points(img, view, centre, radius_px, &ray_levels, ground);
+        let (mut pts, over_backdrop) =
+            edge_points(img, view, centre, radius_px, &ray_levels, ground);
+        // Rays whose rim lies beyond the view's border are left out too: the disc is cut
+        // there, and the arc left is fitted at the known radius like one a backdrop hid (a
+        // free radius on it put such centres 1–2 px off while claiming 0.25). Said outright:
+        // before the floor on the backdrop's noise (`Ground::still_noise`) the backdrop's own
+        // noise left such rays out, at random, on most noisy recordings.
+        let hidden = over_backdrop + rim.iter().filter(|r| r.is_none()).count();
         if let Some((oc, or)) = other {
             pts.retain(|p| (p[0] - oc[0]).hypot(p[1] - oc[1]) > or + NEIGHBOUR_MARGIN_PX);
         }
