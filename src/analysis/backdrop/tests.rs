@@ -346,10 +346,8 @@ fn a_stuck_pixel_on_the_spheres_path_is_left_out_and_said() {
 
 /// The noise the still keeps (`GreyImage::ground_noise`, which the edge points' test for a
 /// backdrop's edge must clear): on a flat ground with noise σ = 3 over 30 frames, the still's
-/// pixels scatter as it says, within a fifth. (Measured
-/// on the still's pixel-to-pixel differences instead, whole grey levels, a median of them said
-/// twice as much at σ = 2, and a floor that high hid a sphere resting in view before its
-/// release from the edge points.)
+/// pixels scatter as it says, within a fifth. (Measured on the still's own pixel-to-pixel
+/// differences instead, whole grey levels, a median of them said twice as much at σ = 2.)
 #[test]
 fn the_stills_noise_is_the_quantiles() {
     let (w, h) = (96usize, 32usize);

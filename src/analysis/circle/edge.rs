@@ -490,8 +490,8 @@ pub fn fit_edges(
         // Rays whose rim lies beyond the view's border are left out too: the disc is cut
         // there, and the arc left is fitted at the known radius like one a backdrop hid (a
         // free radius on it put such centres 1–2 px off while claiming 0.25). Said outright:
-        // before the floor on the backdrop's noise (`Ground::still_noise`) the backdrop's own
-        // noise left such rays out, at random, on most noisy recordings.
+        // before the floor on the backdrop's noise (`Ground::still_noise`), that noise left
+        // such rays out by chance (their rim reads the ground: no contrast, no `dip`).
         let hidden = over_backdrop + rim.iter().filter(|r| r.is_none()).count();
         if let Some((oc, or)) = other {
             pts.retain(|p| (p[0] - oc[0]).hypot(p[1] - oc[1]) > or + NEIGHBOUR_MARGIN_PX);

@@ -107,14 +107,14 @@ fn a_sphere_darker_than_a_grey_ground_at_its_limb_is_measured() {
 
 /// A sphere lit from 30° to one side over a grey ground whose level its shaded limb nearly
 /// matches (ground 80, the sphere 200 with an ambient floor of 0.4: a contrast of a few grey
-/// levels there), noise σ = 4 (a grey ground's shot noise), and the subtracted backdrop noisy as
-/// a quantile of 31 frames keeps it (σ = 1.04, `GreyImage::ground` and `ground_noise`),
-/// at 24 sub-pixel phases: no edge-point fit is taken
-/// as crossing a static backdrop. A tenth of a few levels of contrast is below the backdrop's
-/// own noise, and without the floor of `Ground::still_noise` such rays were "hidden" on 16 of
-/// the 24 phases — the disc then half hidden, and left unmeasured wherever its grey-level fit did not
-/// settle (an independent render over a ground of 80: one sphere in 8 of a view's first 10
-/// frames). The centres are measured as before: unbiased to 0.02 px.
+/// levels there), noise σ = 4 (a grey ground's shot noise), and the subtracted backdrop as noisy
+/// as a quantile of 31 frames keeps it (σ = 1.04, `GreyImage::ground` and `ground_noise`), at
+/// 24 sub-pixel phases: no edge-point fit is taken as crossing a static backdrop. A tenth of a
+/// few levels of contrast is below the backdrop's own noise, and without the floor of
+/// `Ground::still_noise` such rays were "hidden" on 16 of the 24 phases — the disc then taken
+/// as partly hidden, and left unmeasured wherever its grey-level fit did not settle (an
+/// independent render over a ground of 80: one sphere in 8 of a view's first 10 frames). The
+/// centres are unbiased to 0.02 px.
 #[test]
 fn a_noisy_backdrop_is_not_taken_for_a_tube_end() {
     let ground = 80.0;
