@@ -100,13 +100,7 @@ fn a_turned_view_measures_its_coordinates_given_the_one_it_cannot_see() {
 #[test]
 fn a_view_with_a_lens_projects_through_it_and_solves_back() {
     let lens = "lens_k1 = -0.05\nlens_centre_px = [119.5, 95.5]\nlens_radius_px = 153.7";
-    let f = 2.1576 * 300.0;
-    let pinhole = format!(
-        "projection=[[{f}, 0.0, -119.5, {}],[0.0, {}, -44.0, {}],[0.0, 0.0, -1.0, 300.0]]",
-        119.5 * 300.0,
-        -f,
-        44.0 * 300.0
-    );
+    let pinhole = pinhole_300mm_keys();
     let p = V3::new(30.0, -15.0, 4.0);
     for keys in [
         "px_per_mm=2.1576\norigin_px=[119.5,44.0]\nu_axis=\"+x\"\nv_axis=\"-y\"".to_string(),
@@ -149,13 +143,7 @@ fn a_view_with_a_lens_projects_through_it_and_solves_back() {
 #[test]
 fn a_pinhole_view_projects_and_solves_exactly() {
     // 300 mm away along +z: closer points image larger about the principal point.
-    let f = 2.1576 * 300.0;
-    let keys = format!(
-        "projection=[[{f}, 0.0, -119.5, {}],[0.0, {}, -44.0, {}],[0.0, 0.0, -1.0, 300.0]]",
-        119.5 * 300.0,
-        -f,
-        44.0 * 300.0
-    );
+    let keys = pinhole_300mm_keys();
     let view = config_view(ViewKind::Direct, &keys);
     assert!((view.px_per_mm - 2.1576).abs() < 1e-12);
     assert_eq!(view.facing, V3::new(0.0, 0.0, 1.0));
@@ -165,4 +153,16 @@ fn a_pinhole_view_projects_and_solves_exactly() {
     assert!((px[0] - (119.5 + 2.1576 * 10.0 * scale)).abs() < 1e-9);
     let q = view.solve(px, Some(&V3::new(0.0, 0.0, 8.0)));
     assert!((q - p).norm() < 1e-9, "{q}");
+}
+
+/// A direct view's `projection` key: a pinhole 300 mm away along +z, 2.1576 px per mm at the
+/// plane z = 0, its principal point at (119.5, 44.0).
+fn pinhole_300mm_keys() -> String {
+    let f = 2.1576 * 300.0;
+    format!(
+        "projection=[[{f}, 0.0, -119.5, {}],[0.0, {}, -44.0, {}],[0.0, 0.0, -1.0, 300.0]]",
+        119.5 * 300.0,
+        -f,
+        44.0 * 300.0
+    )
 }

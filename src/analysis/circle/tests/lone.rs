@@ -279,20 +279,6 @@ fn a_fit_started_far_from_a_blurred_disc_is_tried_again_from_where_it_went() {
     assert!(worst < 0.2, "worst centre {worst:.3} px from the truth");
 }
 
-/// hw-sim's lab defocused by 1.1 px, lit from 30° to one side (ambient 0.3), its dots painted
-/// at a fifth of the shading (multiplicative) and blurred with it.
-fn defocused_with_dark_dots() -> hw_sim::LabConfig {
-    hw_sim::LabConfig {
-        look: Some(hw_sim::Look {
-            defocus_sigma_px: 1.1,
-            marker_paint: hw_sim::look::MarkerPaint::Multiplicative,
-            marker_factor: 0.2,
-            ..lit_from(30.0, 60.0, 0.3)
-        }),
-        ..Default::default()
-    }
-}
-
 /// Blurred dots no marker search finds: a sphere defocused by 1.1 px and lit from 30° to one
 /// side, eight dots painted at a fifth of the shading (multiplicative) and blurred with it,
 /// noise σ = 2, no masks, 40 phases. Each dot is 5–15σ darker over a dozen pixels, hardly a

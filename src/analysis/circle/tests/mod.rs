@@ -433,6 +433,20 @@ fn lone_sphere_fits_encoded(
         .collect()
 }
 
+/// hw-sim's lab defocused by 1.1 px, lit from 30° to one side (ambient 0.3), its dots painted
+/// at a fifth of the shading (multiplicative) and blurred with it.
+pub(super) fn defocused_with_dark_dots() -> hw_sim::LabConfig {
+    hw_sim::LabConfig {
+        look: Some(hw_sim::Look {
+            defocus_sigma_px: 1.1,
+            marker_paint: hw_sim::look::MarkerPaint::Multiplicative,
+            marker_factor: 0.2,
+            ..lit_from(30.0, 60.0, 0.3)
+        }),
+        ..Default::default()
+    }
+}
+
 /// A look lit from `off_axis_deg` at `azimuth_deg` in the image, otherwise hw-sim's.
 fn lit_from(off_axis_deg: f64, azimuth_deg: f64, ambient: f64) -> hw_sim::Look {
     hw_sim::Look {

@@ -272,15 +272,7 @@ fn one_silhouette_of_two_overlapping_spheres_gives_both_discs() {
 fn blurred_discs_fitted_together_with_their_radii_held_scatter_less() {
     let view = test_view(ViewKind::Direct, 96, 64, 2.1576, [47.3, 31.6], "-y");
     let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
-    let cfg = hw_sim::LabConfig {
-        look: Some(hw_sim::Look {
-            defocus_sigma_px: 1.1,
-            marker_paint: hw_sim::look::MarkerPaint::Multiplicative,
-            marker_factor: 0.2,
-            ..lit_from(30.0, 60.0, 0.3)
-        }),
-        ..Default::default()
-    };
+    let cfg = defocused_with_dark_dots();
     let bg = cfg.background_grey;
     let mut cases = Vec::new();
     for k in 0..40 {
