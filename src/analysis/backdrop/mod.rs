@@ -208,6 +208,15 @@ impl Backdrop {
                     let bright = if vb.dark_spheres { 255.0 - b } else { b };
                     g[(y0 + k / rw) * w + x0 + k % rw] = bright - vb.level;
                 }
+                // A stuck pixel shows its own level, not what stands behind it: taken as the
+                // backdrop, a hot one is a 255-level step that every ray of a disc crossing
+                // it reads as a tube end's edge. Its four neighbours (never stuck: they vary)
+                // say what is there.
+                for &i in &vb.stuck {
+                    let mut n = [g[i - 1], g[i + 1], g[i - w], g[i + w]];
+                    n.sort_by(f32::total_cmp);
+                    g[i] = 0.5 * (n[1] + n[2]);
+                }
             }
             Arc::from(g)
         });
