@@ -195,7 +195,12 @@ pub struct Ground {
 /// below the ground beyond its crossing, the edge is where it rises again, halfway from its
 /// lowest to the ground; and a ray `dark` all the way (the disc below the ground on that side)
 /// is read reflected about the ground, so that the same rules find its rise.
-/// Returns the points and the number of rays left out for such a backdrop.
+///
+/// Nor is a ray that reads anything darker than the ground within a few pixels beyond the
+/// known radius (`SHADOW_READ_PX`) and off the `other` sphere's disc (whose limb may be darker
+/// than the ground too): a shadow against the limb, which the rules above would read as the
+/// limb.
+/// Returns the points and the number of rays left out for such a backdrop or a shadow.
 pub fn edge_points(
     img: &GreyImage,
     view: &View,
@@ -203,6 +208,7 @@ pub fn edge_points(
     radius_px: f64,
     ray_levels: &[RayLevel],
     ground: Ground,
+    other: Option<([f64; 2], f64)>,
 ) -> (Vec<[f64; 2]>, usize) {
     let rays = ray_levels.len();
     let mut pts = Vec::with_capacity(rays);
@@ -226,6 +232,28 @@ pub fn edge_points(
             img.sample(centre[0] + r * dx, centre[1] + r * dy)
                 .map(upright)
         };
+        // Something darker than the ground just beyond where the limb must be (the sphere's
+        // radius is known): a shadow the sphere casts on a backdrop close behind. Its dark
+        // would be read as the limb (`limb_beyond`), or, reflected on a side darker than the
+        // ground, as the disc itself: a disc lit from 30° to one side, its shadow against its
+        // dark limb, came out 1.4 px towards the shadow. The ray is left out as one over a
+        // tube end's edge is: the edge there does not stand against the ground.
+        let shadowed = SHADOW_READ_PX.iter().any(|&d| {
+            let (u, v) = (
+                centre[0] + (radius_px + d) * dx,
+                centre[1] + (radius_px + d) * dy,
+            );
+            view.contains(u, v)
+                && !other
+                    .is_some_and(|(oc, or)| (u - oc[0]).hypot(v - oc[1]) < or + NEIGHBOUR_MARGIN_PX)
+                && img
+                    .sample(u, v)
+                    .is_some_and(|b| b < ground.level - ground.trough)
+        });
+        if shadowed {
+            hidden += 1;
+            continue;
+        }
         let mut prev: Option<(f64, f64)> = None;
         let mut was_inside = false;
         let mut lowest_inside = f64::INFINITY;
@@ -298,6 +326,14 @@ pub fn edge_points(
     }
     (pts, hidden)
 }
+
+/// Where beyond the sphere's known radius a ray reads the ground for a shadow against the limb
+/// (`edge_points`), px: past a sharp edge's blur, within a shadow that touches the limb. Any
+/// one reading below the ground by `Ground::trough` leaves the ray out: a shadow's thin end
+/// darkens only the nearest. (A blurred disc's light there only lifts the readings; a limb
+/// darker than the ground, or a start pixels off, can lower them, and then the ray is left out
+/// with a disc whose edge was partly hidden, which the grey-level fit must confirm.)
+const SHADOW_READ_PX: [f64; 4] = [1.5, 2.5, 3.5, 4.5];
 
 /// Samples of a ray's profile read past its crossing (`edge_points`): the crossing's, and 2 px
 /// beyond it, as far as a limb darker than the ground is looked for (`limb_beyond`).
@@ -486,7 +522,7 @@ pub fn fit_edges(
             still_noise: STILL_STEP_NOISE * img.ground_noise as f64,
         };
         let (mut pts, over_backdrop) =
-            edge_points(img, view, centre, radius_px, &ray_levels, ground);
+            edge_points(img, view, centre, radius_px, &ray_levels, ground, other);
         // Rays whose rim lies beyond the view's border are left out too: the disc is cut
         // there, and the arc left is fitted at the known radius like one a backdrop hid (a
         // free radius on it put such centres 1–2 px off while claiming 0.25). Said outright:

@@ -3,8 +3,9 @@
 //! crosses it; one disc, two discs whose rings meet fitted together, or the front disc hiding
 //! the back one. `ring` gathers the pixels, `model` holds the disc's shading averaged over a
 //! box, `pixel` the model at one pixel, `fit` the Levenberg–Marquardt fit of it, and
-//! `dark_patches` the dots a blur has spread, which that fit leaves out; `first_pass` what the
-//! analysis's first pass gives the second's fit of a disc.
+//! `dark_patches` the dots a blur has spread, which that fit leaves out; `shadow` the sectors
+//! a cast shadow lies against, which it leaves out too; `first_pass` what the analysis's first
+//! pass gives the second's fit of a disc.
 
 mod dark_patches;
 mod first_pass;
@@ -12,6 +13,7 @@ mod fit;
 mod model;
 mod pixel;
 mod ring;
+mod shadow;
 
 use super::edge::sectors_covered;
 use super::{CircleFit, DotMask, GreyImage, View};
@@ -19,6 +21,7 @@ use first_pass::held_widened;
 pub use first_pass::FirstPassDisc;
 use fit::{fit_grey_levels, Kept, Layering, Rounds};
 use ring::ring_pixels;
+use shadow::Shadowed;
 
 /// Half-width of the band round the edge whose pixels the profile fit uses, px.
 pub const PROFILE_BAND_PX: f64 = 2.5;
@@ -97,6 +100,8 @@ pub fn profile_plan(
     let near_other = |u: f64, v: f64| {
         other.is_some_and(|(oc, or)| dist(u - oc[0], v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
     };
+    let shadowed = Shadowed::find(img, view, start, background, &near_other);
+    let left_out = |u: f64, v: f64| near_other(u, v) || shadowed.covers(u, v);
     let chain_start = *start;
     let start = CircleFit {
         radius: radius_px.unwrap_or(start.radius),
@@ -106,7 +111,7 @@ pub fn profile_plan(
     let smear_px = held.map_or([0.0; 2], |h| h.smear_px);
     // `tie`: the radius the fit holds (`radius_px`, or on the blurred refit `held`'s).
     let fit = |disc: &CircleFit, inner_px: f64, max_move_px: f64, tie: Option<f64>| {
-        let pixels = ring_pixels(img, view, &[disc], dots, near_other, min_sectors, inner_px)?;
+        let pixels = ring_pixels(img, view, &[disc], dots, left_out, min_sectors, inner_px)?;
         // The refit on the ring reaching past a blurred edge models the shading's rise
         // under it as blurred (`model::blurred_rise`); the first, on the usual band, as
         // the step times the shading, which a sharp edge makes exact and which only has
@@ -133,6 +138,7 @@ pub fn profile_plan(
             held,
             smear_px,
             other,
+            shadowed,
             background,
             kept: f.kept?,
             fallback: None,
@@ -242,16 +248,17 @@ fn finish_unchanged(
     plan: &ProfilePlan,
     dots: &[DotMask],
 ) -> Option<Option<CircleFit>> {
-    let near_other = |u: f64, v: f64| {
+    let left_out = |u: f64, v: f64| {
         plan.other
             .is_some_and(|(oc, or)| dist(u - oc[0], v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
+            || plan.shadowed.covers(u, v)
     };
     let pixels = ring_pixels(
         img,
         view,
         &[&plan.disc],
         dots,
-        near_other,
+        left_out,
         min_sectors(plan.radius_px),
         plan.inner_px,
     )
@@ -291,6 +298,8 @@ pub struct ProfilePlan {
     /// The smear the fit modelled (`FirstPassDisc::smear_px`).
     smear_px: [f64; 2],
     other: Option<([f64; 2], f64)>,
+    /// The sectors a shadow lies against, left out (`shadow`).
+    shadowed: Shadowed,
     background: f64,
     kept: Kept,
     /// For a blurred disc's refit, the first fit's plan: what stands where the refit's final
