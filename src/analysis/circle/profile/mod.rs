@@ -97,10 +97,30 @@ pub fn profile_plan(
     radius_px: Option<f64>,
     held: Option<FirstPassDisc>,
 ) -> Option<(CircleFit, ProfilePlan)> {
+    plan_with(
+        img, view, start, background, other, dots, radius_px, held, None,
+    )
+}
+
+/// `profile_plan`, with the shadowed sectors already found from this `start` where given (a
+/// plan made again from its start finds the same ones: `profile_finish`).
+#[allow(clippy::too_many_arguments)]
+fn plan_with(
+    img: &GreyImage,
+    view: &View,
+    start: &CircleFit,
+    background: f64,
+    other: Option<([f64; 2], f64)>,
+    dots: &[DotMask],
+    radius_px: Option<f64>,
+    held: Option<FirstPassDisc>,
+    shadowed: Option<Shadowed>,
+) -> Option<(CircleFit, ProfilePlan)> {
     let near_other = |u: f64, v: f64| {
         other.is_some_and(|(oc, or)| dist(u - oc[0], v - oc[1]) < or + PROFILE_BAND_PX + 1.0)
     };
-    let shadowed = Shadowed::find(img, view, start, background, &near_other);
+    let shadowed =
+        shadowed.unwrap_or_else(|| Shadowed::find(img, view, start, background, &near_other));
     let left_out = |u: f64, v: f64| near_other(u, v) || shadowed.covers(u, v);
     let chain_start = *start;
     let start = CircleFit {
@@ -226,7 +246,7 @@ pub fn profile_finish(
             return fit;
         }
     }
-    let (_, again) = profile_plan(
+    let (_, again) = plan_with(
         img,
         view,
         &plan.start,
@@ -235,6 +255,7 @@ pub fn profile_finish(
         dots,
         plan.radius_px,
         held,
+        Some(plan.shadowed),
     )?;
     // Its ring has these dots masked already.
     finish_unchanged(img, view, &again, dots).flatten()
