@@ -244,8 +244,7 @@ pub fn edge_points(
                 centre[1] + (radius_px + d) * dy,
             );
             view.contains(u, v)
-                && !other
-                    .is_some_and(|(oc, or)| (u - oc[0]).hypot(v - oc[1]) < or + NEIGHBOUR_MARGIN_PX)
+                && !by_the_other([u, v], other)
                 && img
                     .sample(u, v)
                     .is_some_and(|b| b < ground.level - ground.trough)
@@ -403,6 +402,12 @@ const PARTIAL_ARC_SECTORS: usize = 20;
 /// sphere — a bias that grows as they approach and tilts the last frames before the impact.
 pub const NEIGHBOUR_MARGIN_PX: f64 = 3.0;
 
+/// Whether point `p` lies within `NEIGHBOUR_MARGIN_PX` of the `other` sphere's disc (centre,
+/// radius, px): there the ground is not the ground.
+fn by_the_other(p: [f64; 2], other: Option<([f64; 2], f64)>) -> bool {
+    other.is_some_and(|(oc, or)| (p[0] - oc[0]).hypot(p[1] - oc[1]) <= or + NEIGHBOUR_MARGIN_PX)
+}
+
 /// How many of the ground's noise σ a profile must sink below the ground beyond its crossing
 /// to show a limb darker than the ground (`edge_points`): noise alone, over the eleven
 /// samples a ray reads beyond it, reaches 2–3σ.
@@ -529,9 +534,7 @@ pub fn fit_edges(
         // before the floor on the backdrop's noise (`Ground::still_noise`), that noise left
         // such rays out by chance (their rim reads the ground: no contrast, no `dip`).
         let hidden = over_backdrop + rim.iter().filter(|r| r.is_none()).count();
-        if let Some((oc, or)) = other {
-            pts.retain(|p| (p[0] - oc[0]).hypot(p[1] - oc[1]) > or + NEIGHBOUR_MARGIN_PX);
-        }
+        pts.retain(|&p| !by_the_other(p, other));
         // Rays over a static backdrop (a tube end the sphere is leaving, a ruler) tell nothing
         // here: a third of the others must give a point.
         if pts.len() < (rays - hidden) / 3 || pts.len() < 8 {
