@@ -22,7 +22,14 @@ marker_scale (1); texture (0: the albedo varies by this in low waves fixed on th
 shadow {distance_mm, darkness, soft_px}: each sphere's shadow cast along the lamp onto a
 backdrop that far behind; ghost {fraction, offset_px}: a second-surface mirror's faint copy in
 the mirror view; dust (0: sensor dust blobs); exposure_s (the recording's: smear over it, and
-the calibration says so); read_noise_dn (2), shot_dn_per_e (0.1), column_fpn_dn (0).
+the calibration says so); read_noise_dn (2), shot_dn_per_e (0.1), column_fpn_dn (0);
+scale (1: the camera's resolution times this, the same rig: frames, maps, regions and true
+centres scaled about the pixels' edges, so the spheres span that many times the pixels);
+perspective_mm (none: orthographic as the recording's maps; a number, or [direct, mirror]):
+each view seen through a pinhole that far from the middle of the spheres' path, its
+magnification there the recording's map; the 3×4 projections (world metres to homogeneous
+px) go into calibration.json as each view's "P", A and b stay the affine map at that middle,
+and centres.csv holds the images of the spheres' centres through the pinholes.
 """
 import json, sys, os, shutil, math
 import numpy as np
@@ -34,6 +41,26 @@ rng = np.random.default_rng(look.get("seed", 1))
 truth = json.load(open(os.path.join(src, "truth.json")))
 cal = json.load(open(os.path.join(src, "calibration.json")))
 C = cal["calibration"]
+scale = look.get("scale", 1)
+if scale != 1:
+    # A finer sensor on the same rig: pixel k spans [k - 1/2, k + 1/2], so a point at u is at
+    # scale·(u + 1/2) - 1/2 on it.
+    if int(scale) != scale or scale < 1:
+        sys.exit("scale must be a whole number >= 1")
+    scale = int(scale)
+    cal = json.loads(json.dumps(cal))
+    C = cal["calibration"]
+    C["image_width"] *= scale
+    C["image_height"] *= scale
+    for name in ("direct", "mirror"):
+        c = C[name]
+        c["A"] = [[a * scale for a in row] for row in c["A"]]
+        c["b"] = [scale * (x + 0.5) - 0.5 for x in c["b"]]
+        c["rows"] = [r * scale for r in c["rows"]]
+        if "pixels_per_metre" in c:
+            c["pixels_per_metre"] *= scale
+        if "origin_px" in c:
+            c["origin_px"] = [scale * (x + 0.5) - 0.5 for x in c["origin_px"]]
 W, H = C["image_width"], C["image_height"]
 fps = cal["fps"]
 exposure = look.get("exposure_s", cal["exposure_s"])
@@ -44,6 +71,11 @@ def unit(v):
     v = np.asarray(v, float)
     return v / np.linalg.norm(v)
 
+persp = look.get("perspective_mm", None)
+if persp is not None and not isinstance(persp, list):
+    persp = [persp, persp]
+# The middle of the spheres' path (the pinholes' reference point), m.
+c0 = np.mean([fr["spheres"][k]["centre_m"] for fr in truth["frames"] for k in ("a", "b")], axis=0)
 views = {}
 for name in ("direct", "mirror"):
     c = C[name]
@@ -63,6 +95,25 @@ for name in ("direct", "mirror"):
     field = [rng.uniform(-g, g), rng.uniform(-g, g), -rng.uniform(0, g)]
     gain = 1.0 if name == "direct" else rng.uniform(0.85, 0.92)
     views[name] = dict(A=A, b=b, n=nvec, Apinv=Apinv, rows=(r0, r1), L=L, field=field, gain=gain)
+    if persp is not None:
+        # A pinhole on the view's axis, D from c0: u = u0 + A·(X − c0)/w with w = 1 − n·(X − c0)/D,
+        # the same magnification as A at c0's depth. As a 3×4 matrix on [X, 1] (metres).
+        D = persp[0 if name == "direct" else 1] / 1000
+        u0 = A @ c0 + b
+        P = np.zeros((3, 4))
+        P[2, :3] = -nvec / D
+        P[2, 3] = 1 + nvec @ c0 / D
+        P[:2, :3] = A - np.outer(u0, nvec) / D
+        P[:2, 3] = -A @ c0 + u0 * P[2, 3]
+        views[name].update(P=P, D=D, u0=u0, cam=c0 + D * nvec)
+        c["P"] = P.tolist()
+
+def project(vw, X):
+    """The image of world point X (m) and the px per m there (the magnification)."""
+    if "P" in vw:
+        h = vw["P"] @ np.append(X, 1.0)
+        return h[:2] / h[2], np.linalg.norm(vw["A"][0]) / h[2]
+    return vw["A"] @ X + vw["b"], np.linalg.norm(vw["A"][0])
 
 bg_dn = look.get("background_dn", 20.0)
 albedo = look.get("albedo_dn", 190.0)
@@ -132,27 +183,41 @@ def render_view(vw, states):
             L = vw["L"]
             t = (c @ n + D) / (L @ n)
             s = c - L * t
-            sc = vw["A"] @ s + vw["b"]
-            rpx = rad[name] * np.linalg.norm(vw["A"][0])
+            sc, mag = project(vw, s)
+            rpx = rad[name] * mag
             d = np.hypot(U - sc[0], V - sc[1])
             f = 1 / (1 + np.exp((d - rpx) / shadow["soft_px"]))
             img = img * (1 - shadow["darkness"] * f)
     for name, (c, R) in states.items():
         r = rad[name]
-        ci = vw["A"] @ c + vw["b"]
-        rpx = r * np.linalg.norm(vw["A"][0])
-        box = (np.abs(U - ci[0]) < rpx + 2) & (np.abs(V - ci[1]) < rpx + 2)
+        ci, mag = project(vw, c)
+        rpx = r * mag
+        box = (np.abs(U - ci[0]) < 1.05 * rpx + 2) & (np.abs(V - ci[1]) < 1.05 * rpx + 2)
         if not box.any():
             continue
-        du = U[box] - ci[0]
-        dv = V[box] - ci[1]
-        X = (vw["Apinv"] @ np.stack([du, dv]))  # 3 x N world offsets in the image plane
-        rho2 = (X * X).sum(0) / (r * r)
-        inside = rho2 < 1
-        h = np.sqrt(np.clip(1 - rho2, 0, None)) * r
-        P = X + h[None, :] * n[:, None]
-        N = P / r
-        dep = (c @ n) + (P.T @ n)
+        if "P" in vw:
+            # Each sample's ray from the pinhole through its point on the plane through c0.
+            Q = c0[:, None] + vw["Apinv"] @ np.stack([U[box] - vw["u0"][0], V[box] - vw["u0"][1]])
+            d = Q - vw["cam"][:, None]
+            oc = (vw["cam"] - c)[:, None]
+            bq = (d * oc).sum(0)
+            aq = (d * d).sum(0)
+            disc = bq * bq - aq * ((oc * oc).sum() - r * r)
+            inside = disc > 0
+            t = (-bq - np.sqrt(np.clip(disc, 0, None))) / aq
+            P = vw["cam"][:, None] + t[None, :] * d - c[:, None]
+            N = P / r
+            dep = -t
+        else:
+            du = U[box] - ci[0]
+            dv = V[box] - ci[1]
+            X = (vw["Apinv"] @ np.stack([du, dv]))  # 3 x N world offsets in the image plane
+            rho2 = (X * X).sum(0) / (r * r)
+            inside = rho2 < 1
+            h = np.sqrt(np.clip(1 - rho2, 0, None)) * r
+            P = X + h[None, :] * n[:, None]
+            N = P / r
+            dep = (c @ n) + (P.T @ n)
         idx = np.flatnonzero(box)
         sel = inside & (dep > depth.reshape(-1)[idx])
         if not sel.any():
@@ -223,4 +288,33 @@ cal2 = dict(cal)
 cal2["exposure_s"] = exposure
 json.dump(cal2, open(os.path.join(dst, "calibration.json"), "w"), indent=1)
 shutil.copy(os.path.join(src, "truth.json"), dst)
-shutil.copy(os.path.join(src, "centres.csv"), dst)
+if persp is not None:
+    # The images of the spheres' centres through the pinholes.
+    import csv
+    with open(os.path.join(src, "centres.csv")) as f_in, open(os.path.join(dst, "centres.csv"), "w", newline="") as f_out:
+        rows = csv.reader(f_in)
+        head = next(rows)
+        w = csv.writer(f_out)
+        w.writerow(head)
+        for row in rows:
+            fr = frames[int(row[0])]
+            out_row = []
+            for h, x in zip(head, row):
+                if h in ("frame", "time_s"):
+                    out_row.append(x)
+                    continue
+                sph, axis, view = h.split("_")
+                uv, _ = project(views[view], np.array(fr["spheres"][sph]["centre_m"]))
+                out_row.append(repr(float(uv[0] if axis == "x" else uv[1])))
+            w.writerow(out_row)
+elif scale == 1:
+    shutil.copy(os.path.join(src, "centres.csv"), dst)
+else:
+    import csv
+    with open(os.path.join(src, "centres.csv")) as f_in, open(os.path.join(dst, "centres.csv"), "w", newline="") as f_out:
+        rows = csv.reader(f_in)
+        head = next(rows)
+        w = csv.writer(f_out)
+        w.writerow(head)
+        for row in rows:
+            w.writerow([x if h in ("frame", "time_s") or x == "" else repr(scale * (float(x) + 0.5) - 0.5) for h, x in zip(head, row)])

@@ -90,9 +90,26 @@ pub(crate) fn config_from_calibration(cal: &Value) -> Result<Config, String> {
             rows.first().and_then(Value::as_u64).unwrap_or(0) as u32,
             rows.get(1).and_then(Value::as_u64).unwrap_or(0) as u32,
         );
+        let region = [0, r0, cfg.camera.width, r1.saturating_sub(r0)];
+        // A pinhole view (`scripts/rerender-looks.py --perspective_mm`): "P", 3×4, world metres
+        // to homogeneous px; the config's projection takes millimetres.
+        if let Some(p) = v.get("P") {
+            let at =
+                |i: usize, j: usize| num(&p[i][j]).ok_or(format!("{name}.P[{i}][{j}] missing"));
+            let mut rows = [[0.0; 4]; 3];
+            for (i, row) in rows.iter_mut().enumerate() {
+                for (j, x) in row.iter_mut().enumerate() {
+                    *x = at(i, j)? / if j < 3 { 1000.0 } else { 1.0 };
+                }
+            }
+            return Ok(ViewGeometry {
+                region,
+                projection: Some(rows),
+                ..Default::default()
+            });
+        }
         let a = &v["A"];
         let b = &v["b"];
-        let region = [0, r0, cfg.camera.width, r1.saturating_sub(r0)];
         let origin = [num(&b[0]).unwrap_or(0.0), num(&b[1]).unwrap_or(0.0)];
         // A is px per metre.
         let rows: [[f64; 3]; 2] =
@@ -522,4 +539,62 @@ pub fn validation(dir: &Path, saved_as: &[SavedAs]) -> Result<String, String> {
         let _ = writeln!(out, "{line}");
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::config_from_calibration;
+    use serde_json::json;
+
+    /// A view's "P" (world metres to homogeneous px) becomes the config's projection in
+    /// millimetres, taking the place of A and b; a P short of an entry is an error naming it.
+    #[test]
+    fn a_pinhole_views_p_becomes_its_projection_in_millimetres() {
+        let view = |rows: [u64; 2], p: serde_json::Value| {
+            json!({
+                "rows": rows,
+                "A": [[2610.0, 0.0, 0.0], [0.0, -2610.0, 0.0]],
+                "b": [175.0, 51.0],
+                "view_direction_to_camera": [0.0, 0.0, 1.0],
+                "P": p,
+            })
+        };
+        let p_direct = json!([
+            [2610.0, 0.0, -583.3, 175.0],
+            [0.0, -2610.0, -170.0, 51.0],
+            [0.0, 0.0, -3.333, 1.0]
+        ]);
+        let p_mirror = json!([
+            [2540.0, -590.0, 0.0, 176.0],
+            [0.0, -560.0, 2540.0, 168.0],
+            [0.0, -3.333, 0.0, 1.0]
+        ]);
+        let cal = |p_mirror: serde_json::Value| {
+            json!({
+                "fps": 1000.0, "exposure_s": 0.0001,
+                "diameter_a_m": 0.00635, "diameter_b_m": 0.00635,
+                "mass_a_kg": 0.000335, "mass_b_kg": 0.000335, "gravity_mps2": 9.81,
+                "calibration": {
+                    "image_width": 240, "image_height": 192,
+                    "direct": view([0, 96], p_direct.clone()),
+                    "mirror": {
+                        "rows": [96, 192], "A": [[2540.0, 0.0, 0.0], [0.0, 0.0, 2540.0]],
+                        "b": [176.0, 168.0], "view_direction_to_camera": [0.0, 1.0, 0.0],
+                        "P": p_mirror,
+                    },
+                },
+            })
+        };
+        let cfg = config_from_calibration(&cal(p_mirror.clone())).expect("a valid config");
+        let direct = cfg.geometry.direct.expect("a direct view");
+        let p = direct.projection.expect("the direct view is a pinhole");
+        assert_eq!(direct.matrix_px_per_mm, None);
+        assert_eq!(direct.origin_px, None);
+        assert!((p[0][0] - 2.610).abs() < 1e-12 && (p[2][2] + 0.003333).abs() < 1e-12);
+        assert_eq!((p[0][3], p[1][3], p[2][3]), (175.0, 51.0, 1.0));
+        let mut short = p_mirror;
+        short[1] = json!([0.0, -560.0, 2540.0]);
+        let err = config_from_calibration(&cal(short)).expect_err("P short of an entry");
+        assert!(err.contains("mirror.P[1][3]"), "{err}");
+    }
 }
