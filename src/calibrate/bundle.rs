@@ -6,7 +6,7 @@ use super::maps::{direct_matrix, facing_of, mirror_matrix, x_sign};
 use super::provisional::MirrorAxes;
 use super::{Fitted, MirrorFit};
 use crate::analysis::calibration::fit_line;
-use crate::analysis::geometry::{View, ViewKind, V3};
+use crate::analysis::geometry::{View, V3};
 use crate::analysis::tracking::FrameObs;
 use nalgebra::{DMatrix, DVector};
 
@@ -147,6 +147,9 @@ pub(super) fn fit_bundle(
             f: 1.0,
         });
     let (kx, kz, f) = (axes.x_along, 1 - axes.x_along, axes.f);
+    // Which side of the mirror view its camera is on (`View::mirrored`): it sets the sign of
+    // the camera's 1/distance.
+    let mirror_mirrored = provisional_mirror.is_none_or(|v| v.mirrored);
     let ov = provisional_mirror.map_or(0.0, |v| v.origin_px[kz]);
     // Parameters: s_d, φ_d, s_m, the mirror's turn about x, y, z, its offset along x, the direct and the
     // mirror camera's inverse distance κ (1/mm; 0 is orthographic), the lens's k1, then
@@ -216,8 +219,8 @@ pub(super) fn fit_bundle(
         let md = direct_matrix(th[0], th[1], sd);
         let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], axes);
         let (fd, fm) = (
-            facing_of(&md, ViewKind::Direct),
-            facing_of(&mm, ViewKind::Mirror),
+            facing_of(&md, views[di].mirrored),
+            facing_of(&mm, mirror_mirrored),
         );
         let mut r = DVector::zeros(2 * pts.len() + PRIORS.len());
         // Weak priors keep what the flights cannot tell apart sane (and its σ honest): each
@@ -387,9 +390,9 @@ pub(super) fn fit_bundle(
         let md = direct_matrix(th[0], th[1], sd);
         let mm = mirror_matrix(th[2], [th[3], th[4], th[5]], axes);
         let facing = if view == 0 {
-            facing_of(&md, ViewKind::Direct)
+            facing_of(&md, views[di].mirrored)
         } else {
-            facing_of(&mm, ViewKind::Mirror)
+            facing_of(&mm, mirror_mirrored)
         };
         let (sum, n) = pts
             .iter()

@@ -4,7 +4,7 @@
 
 use super::provisional::MirrorAxes;
 use super::Fitted;
-use crate::analysis::geometry::{ViewKind, V3};
+use crate::analysis::geometry::V3;
 use crate::config::ViewGeometry;
 
 /// Direct view: M = s·[[cos φ, −sin φ, 0], [−sin φ, −cos φ, 0]] (φ: gravity's image turned
@@ -47,12 +47,15 @@ pub(super) fn mirror_matrix(s: f64, turn: [f64; 3], axes: MirrorAxes) -> [[f64; 
 }
 
 /// The unit vector from the scene towards a view's camera, from its map's rows (u × v is the
-/// line of sight for a camera, reversed by a mirror).
-pub(super) fn facing_of(m: &[[f64; 3]; 2], kind: ViewKind) -> V3 {
+/// line of sight for a camera, reversed in a mirror image: `View::mirrored`, the mirror view
+/// by default). (Taken from the kind of view alone, a mirror view whose image is not reversed
+/// had its camera's distance printed negative: an independent render's, −332 mm for 300.)
+pub(super) fn facing_of(m: &[[f64; 3]; 2], mirrored: bool) -> V3 {
     let c = V3::from(m[0]).cross(&V3::from(m[1])).normalize();
-    match kind {
-        ViewKind::Direct => -c,
-        ViewKind::Mirror => c,
+    if mirrored {
+        c
+    } else {
+        -c
     }
 }
 
@@ -71,13 +74,13 @@ pub(super) fn view_geometry(
     region: [u32; 4],
     m: [[f64; 3]; 2],
     origin: [f64; 2],
-    kind: ViewKind,
+    mirrored: bool,
     kappa: Fitted,
 ) -> ViewGeometry {
     if distance(kappa).is_none() {
         return ViewGeometry::affine(region, m, origin);
     }
-    let (k, f) = (kappa.value, facing_of(&m, kind));
+    let (k, f) = (kappa.value, facing_of(&m, mirrored));
     let row = |r: [f64; 3], o: f64| [0, 1, 2].map(|i| r[i] - o * k * f[i]);
     let [a, b] = [row(m[0], origin[0]), row(m[1], origin[1])];
     ViewGeometry {

@@ -475,7 +475,7 @@ pub fn calibrate(
             direct_cfg.region,
             m_direct,
             origin_direct,
-            ViewKind::Direct,
+            views[di].mirrored,
             bundle.kappa[0],
         )),
         mirror: None,
@@ -511,7 +511,7 @@ pub fn calibrate(
         let mut origin = views[mi].origin_px;
         origin[axes.x_along] = fit.origin_x_px.value;
         let mut mirror_geometry =
-            view_geometry(region, m, origin, ViewKind::Mirror, bundle.kappa[1]);
+            view_geometry(region, m, origin, views[mi].mirrored, bundle.kappa[1]);
         mirror_geometry.px_per_mm_uncertainty_percent =
             Some(percent_known(100.0 * fit.scale.sigma / fit.scale.value));
         mirror_geometry.turn_uncertainty_deg =

@@ -40,9 +40,18 @@ impl Calibrated {
             d.residual_rms_px
         );
         out += &format!("# regions: {}\n", self.regions);
-        let persp = |d: &Option<Fitted>| match d {
+        // A camera found behind the view (its distance negative: nearer spheres image smaller)
+        // is a view whose image is mirrored other than the config says: the side a view's
+        // camera is on is set by `image_mirrored`, which no flight tells, but perspective does.
+        let persp = |d: &Option<Fitted>| {
+            match d {
+            Some(d) if d.value < 0.0 => format!(
+                "a pinhole {} — WARNING: behind the view, so its image is likely mirrored other than `image_mirrored` says (it decides which hemisphere the markers are on)",
+                p(d, "mm away", 0)
+            ),
             Some(d) => format!("a pinhole {}", p(d, "mm away", 0)),
             None => "no perspective found (orthographic)".into(),
+        }
         };
         out += &format!("#   direct camera: {}\n", persp(&d.camera_distance_mm));
         if let Some(m) = &self.mirror {

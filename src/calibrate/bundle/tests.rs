@@ -3,6 +3,7 @@
 
 use super::super::maps::{distance, view_geometry};
 use super::*;
+use crate::analysis::geometry::ViewKind;
 use crate::analysis::tracking::Measurement;
 use crate::config::ViewGeometry;
 
@@ -133,11 +134,11 @@ fn the_bundle_finds_a_turned_rig_within_its_uncertainty() {
         let mm = mirror_matrix(2.1175, turn_m, MirrorAxes::THESIS);
         let direct = View::from_config(
             ViewKind::Direct,
-            &view_geometry([0, 0, 240, 96], md, od, ViewKind::Direct, k),
+            &view_geometry([0, 0, 240, 96], md, od, false, k),
         );
         let mirror = View::from_config(
             ViewKind::Mirror,
-            &view_geometry([0, 96, 240, 96], mm, om, ViewKind::Mirror, k),
+            &view_geometry([0, 96, 240, 96], mm, om, true, k),
         );
         let (obs, phases) = flights_through([&direct, &mirror], 0.02, seed);
         // Started from the square rig, 2 % off in scale.
@@ -200,11 +201,11 @@ fn the_bundle_finds_a_rig_turned_on_its_side() {
     let mm = mirror_matrix(2.1175, turn_m, axes);
     let direct = View::from_config(
         ViewKind::Direct,
-        &view_geometry([0, 0, 96, 240], md, od, ViewKind::Direct, none),
+        &view_geometry([0, 0, 96, 240], md, od, false, none),
     );
     let mirror = View::from_config(
         ViewKind::Mirror,
-        &view_geometry([96, 0, 96, 240], mm, om, ViewKind::Mirror, none),
+        &view_geometry([96, 0, 96, 240], mm, om, true, none),
     );
     let (obs, phases) = flights_through([&direct, &mirror], 0.02, 7);
     // Started from the shorthand an experimenter would type for the turned rig.
@@ -244,12 +245,12 @@ fn thesis_rig(kappa: Fitted) -> ([f64; 2], View, View, [[f64; 3]; 2]) {
     let md = direct_matrix(2.1576, 0.0, 1.0);
     let direct = View::from_config(
         ViewKind::Direct,
-        &view_geometry([0, 0, 240, 96], md, od, ViewKind::Direct, kappa),
+        &view_geometry([0, 0, 240, 96], md, od, false, kappa),
     );
     let mm = mirror_matrix(2.1175, [0.0; 3], MirrorAxes::THESIS);
     let mirror = View::from_config(
         ViewKind::Mirror,
-        &view_geometry([0, 96, 240, 96], mm, om, ViewKind::Mirror, kappa),
+        &view_geometry([0, 96, 240, 96], mm, om, true, kappa),
     );
     (od, direct, mirror, mm)
 }
@@ -264,7 +265,7 @@ fn the_bundle_says_how_deep_the_flights_were() {
         sigma: 0.0,
     };
     let (od, direct, mirror, mm) = thesis_rig(kappa);
-    let facing_mirror = facing_of(&mm, ViewKind::Mirror);
+    let facing_mirror = facing_of(&mm, true);
     for (offset, seed) in [(V3::new(0.0, 3.0, 12.0), 7), (V3::new(2.0, -4.0, -9.0), 8)] {
         let (obs, phases) = flights_through_at([&direct, &mirror], 0.02, seed, offset);
         let b = fit_two_views(
@@ -301,6 +302,45 @@ fn the_bundle_says_how_deep_the_flights_were() {
     }
 }
 
+/// Which side of the view its camera is on is the config's to say (`image_mirrored`), and
+/// perspective shows it: the mirror camera 300 mm away, taken as mirrored (as it is) comes out
+/// 300 mm in front; taken as not mirrored, behind (its 1/distance negative beyond 4σ: what
+/// calibrate warns of).
+#[test]
+fn perspective_shows_the_side_a_views_camera_is_on() {
+    let kappa = Fitted {
+        value: 1.0 / 300.0,
+        sigma: 0.0,
+    };
+    let (od, direct, mirror, _) = thesis_rig(kappa);
+    let (obs, phases) = flights_through([&direct, &mirror], 0.02, 5);
+    for said_mirrored in [true, false] {
+        let provisional = View {
+            mirrored: said_mirrored,
+            ..mirror.clone()
+        };
+        let b = fit_two_views(
+            &obs,
+            &phases,
+            od,
+            (2.1576, 0.0),
+            &provisional,
+            [&direct, &mirror],
+            None,
+            None,
+            [true; 2],
+        );
+        let d = distance(b.kappa[1]).expect("the mirror camera's distance shown");
+        let sign = if said_mirrored { 1.0 } else { -1.0 };
+        assert!(
+            (d.value - sign * 300.0).abs() < 4.0 * d.sigma,
+            "taken as mirrored {said_mirrored}: {} ± {} mm",
+            d.value,
+            d.sigma
+        );
+    }
+}
+
 /// Flights seen through a lens that moves the frame's corners by 2 % (barrel) give the lens's
 /// k1 back within its σ, with the maps still right; seen through none, k1 comes out at 0
 /// within its σ.
@@ -319,7 +359,7 @@ fn the_bundle_finds_the_lens_the_flights_were_seen_through() {
                 [0, 0, 240, 96],
                 direct_matrix(2.1576, 0.4f64.to_radians(), 1.0),
                 od,
-                ViewKind::Direct,
+                false,
                 zero,
             ),
         );
@@ -329,7 +369,7 @@ fn the_bundle_finds_the_lens_the_flights_were_seen_through() {
                 [0, 96, 240, 96],
                 mirror_matrix(2.1175, [0.02, 0.0, 0.0], MirrorAxes::THESIS),
                 om,
-                ViewKind::Mirror,
+                true,
                 zero,
             ),
         );
