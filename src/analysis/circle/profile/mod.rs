@@ -367,7 +367,7 @@ fn blurred_inner_band(widths: &[f64]) -> Option<f64> {
 
 /// Whether an edge of width `s` px is blurred enough that the ring reaches further inside
 /// (`blurred_inner_band`).
-fn edge_is_blurred(s: f64) -> bool {
+pub(crate) fn edge_is_blurred(s: f64) -> bool {
     INNER_BAND_PER_EDGE_WIDTH * s >= 0.25
 }
 
