@@ -12,7 +12,9 @@
 
 use super::identity::{extrapolate, label_split};
 use super::{world_x, FrameCtx, HiddenInPart, Measurement, Spheres, Tracker};
-use crate::analysis::circle::{profile_fit_behind, split_pair, CircleFit, DotMask};
+use crate::analysis::circle::{
+    profile_fit_behind, split_pair, CircleFit, DotMask, BEHIND_REACH_PX,
+};
 use crate::analysis::detect::{Blob, ViewLevels};
 use crate::analysis::geometry::{View, V3};
 use crate::analysis::image::GreyImage;
@@ -195,7 +197,7 @@ impl Tracker {
         }
         // With the front one known, both discs are refitted on the grey levels, the front disc
         // hiding the back one. A refit that moves a disc by more than a pixel from its start
-        // has slid along a crescent too thin to hold it (`MAX_REFIT_MOVE_PX`).
+        // is kept only where a fit tried again from there stays (`MAX_REFIT_MOVE_PX`).
         let behind = front.and_then(|fr| {
             starts.iter().find_map(|[fa, fb]| {
                 stages::timed(Stage::Circles, || {
@@ -400,5 +402,7 @@ fn depths(cx: &FrameCtx, spheres: &Spheres, oi: usize, view: &View) -> [Option<f
 /// hundredths; under a side light or shading it is 0.4–0.7 px off, so the refit that corrects
 /// it was thrown away. Same 38 varied-look recordings, 0.2 → 1 px: centre RMS 0.0759 → 0.0703
 /// px (paint 0.039 → 0.029), e's p95 0.034 → 0.019, ψ2's p95 0.075 → 0.039; the independent
-/// renders unchanged.
-const MAX_REFIT_MOVE_PX: f64 = 1.0;
+/// renders unchanged. Beyond a pixel, where the fit tried again from where it went stays there
+/// (`circle::BEHIND_REACH_PX`, session 53: a silhouette's extent under a lamp 35° off the axis
+/// put the starts 0.8–1.3 px off).
+const MAX_REFIT_MOVE_PX: f64 = BEHIND_REACH_PX;
