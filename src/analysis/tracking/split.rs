@@ -373,8 +373,6 @@ pub(super) fn starts_from_x(
     Some([at(0, mid_a), at(1, mid_b)])
 }
 
-/// Each sphere's depth along `view`'s line of sight as view `oi` measured it in this frame,
-/// larger nearer `view`'s camera; None where `oi` did not measure it or does not see that axis.
 /// Each sphere's world point as view `oi` measured it in this frame, mm, the coordinate that view
 /// cannot see taken as 0.
 fn placed(cx: &FrameCtx, spheres: &Spheres, oi: usize) -> [Option<V3>; 2] {
@@ -384,6 +382,8 @@ fn placed(cx: &FrameCtx, spheres: &Spheres, oi: usize) -> [Option<V3>; 2] {
     })
 }
 
+/// Each sphere's depth along `view`'s line of sight as view `oi` measured it in this frame,
+/// larger nearer `view`'s camera; None where `oi` did not measure it or does not see that axis.
 fn depths(cx: &FrameCtx, spheres: &Spheres, oi: usize, view: &View) -> [Option<f64>; 2] {
     let fi = view.facing.iamax();
     [0, 1].map(|s| {
