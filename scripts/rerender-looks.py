@@ -288,26 +288,17 @@ cal2 = dict(cal)
 cal2["exposure_s"] = exposure
 json.dump(cal2, open(os.path.join(dst, "calibration.json"), "w"), indent=1)
 shutil.copy(os.path.join(src, "truth.json"), dst)
-if persp is not None:
-    # The images of the spheres' centres through the pinholes.
-    import csv
-    with open(os.path.join(src, "centres.csv")) as f_in, open(os.path.join(dst, "centres.csv"), "w", newline="") as f_out:
-        rows = csv.reader(f_in)
-        head = next(rows)
-        w = csv.writer(f_out)
-        w.writerow(head)
-        for row in rows:
-            fr = frames[int(row[0])]
-            out_row = []
-            for h, x in zip(head, row):
-                if h in ("frame", "time_s"):
-                    out_row.append(x)
-                    continue
-                sph, axis, view = h.split("_")
-                uv, _ = project(views[view], np.array(fr["spheres"][sph]["centre_m"]))
-                out_row.append(repr(float(uv[0] if axis == "x" else uv[1])))
-            w.writerow(out_row)
-elif scale == 1:
+def centre_cell(fr, h, x):
+    """One cell of centres.csv as drawn: through the pinholes, or scaled with the sensor."""
+    if h in ("frame", "time_s") or x == "":
+        return x
+    if persp is not None:
+        sph, axis, view = h.split("_")
+        uv, _ = project(views[view], np.array(fr["spheres"][sph]["centre_m"]))
+        return repr(float(uv[0] if axis == "x" else uv[1]))
+    return repr(scale * (float(x) + 0.5) - 0.5)
+
+if persp is None and scale == 1:
     shutil.copy(os.path.join(src, "centres.csv"), dst)
 else:
     import csv
@@ -317,4 +308,5 @@ else:
         w = csv.writer(f_out)
         w.writerow(head)
         for row in rows:
-            w.writerow([x if h in ("frame", "time_s") or x == "" else repr(scale * (float(x) + 0.5) - 0.5) for h, x in zip(head, row)])
+            fr = frames[int(row[0])]
+            w.writerow([centre_cell(fr, h, x) for h, x in zip(head, row)])

@@ -181,6 +181,33 @@ fn one_behind_the_other(s: usize, k: usize) -> Vector3<f64> {
     }
 }
 
+/// Over `one_behind_the_other`'s frames measured in the direct view `direct`: how many have both
+/// spheres, how many both as crescents (`HiddenInPart::Crescent`), and those crescents' worst
+/// centre errors (a, b), px.
+fn crescents(
+    obs: &[crate::analysis::tracking::FrameObs],
+    direct: &View,
+) -> (usize, usize, [f64; 2]) {
+    let (mut both, mut refitted, mut worst) = (0, 0, [0.0f64; 2]);
+    for (k, f) in obs.iter().enumerate() {
+        let (Some(a), Some(b)) = (&f.spheres[0][0], &f.spheres[1][0]) else {
+            continue;
+        };
+        both += 1;
+        if [a, b]
+            .iter()
+            .all(|m| m.hidden_in_part == Some(HiddenInPart::Crescent))
+        {
+            refitted += 1;
+            for (s, m) in [a, b].into_iter().enumerate() {
+                let c = direct.project(&one_behind_the_other(s, k));
+                worst[s] = worst[s].max((m.centre_px[0] - c[0]).hypot(m.centre_px[1] - c[1]));
+            }
+        }
+    }
+    (both, refitted, worst)
+}
+
 /// Both spheres are measured in the direct view's one silhouette of both, split by the
 /// mirror's x, and nearly everywhere refitted on the grey levels with a's disc hiding b's: a
 /// (whole) where it is, b (a crescent a radius wide, its lit side) within a tenth of a pixel
@@ -197,23 +224,7 @@ fn one_silhouette_of_both_in_the_direct_view_is_split_by_the_mirrors_x() {
     let n = 40;
     let mut src = recording(&cfg, &views, one_behind_the_other, false, n);
     let (_, obs) = crate::analysis::measure(&mut src, &cfg).expect("measured");
-    let (mut both, mut refitted, mut worst) = (0, 0, [0.0f64; 2]);
-    for (k, f) in obs.iter().enumerate() {
-        let (Some(a), Some(b)) = (&f.spheres[0][0], &f.spheres[1][0]) else {
-            continue;
-        };
-        both += 1;
-        if [a, b]
-            .iter()
-            .all(|m| m.hidden_in_part == Some(HiddenInPart::Crescent))
-        {
-            refitted += 1;
-            for (s, m) in [a, b].into_iter().enumerate() {
-                let c = views[0].project(&one_behind_the_other(s, k));
-                worst[s] = worst[s].max((m.centre_px[0] - c[0]).hypot(m.centre_px[1] - c[1]));
-            }
-        }
-    }
+    let (both, refitted, worst) = crescents(&obs, &views[0]);
     assert!(
         both >= n * 9 / 10 && refitted >= n * 9 / 10 && worst[0] < 0.06 && worst[1] < 0.1,
         "both measured in the direct view in {both} of {n} frames, refitted in {refitted}; worst refitted centres (a, b) {worst:.3?} px off"
@@ -250,22 +261,7 @@ fn a_crescent_behind_under_a_pinhole_is_fitted_at_its_own_radius() {
     let n = 40;
     let mut src = recording(&cfg, &views, one_behind_the_other, false, n);
     let (_, obs) = crate::analysis::measure(&mut src, &cfg).expect("measured");
-    let (mut refitted, mut worst) = (0, [0.0f64; 2]);
-    for (k, f) in obs.iter().enumerate() {
-        let (Some(a), Some(b)) = (&f.spheres[0][0], &f.spheres[1][0]) else {
-            continue;
-        };
-        if [a, b]
-            .iter()
-            .all(|m| m.hidden_in_part == Some(HiddenInPart::Crescent))
-        {
-            refitted += 1;
-            for (s, m) in [a, b].into_iter().enumerate() {
-                let c = views[0].project(&one_behind_the_other(s, k));
-                worst[s] = worst[s].max((m.centre_px[0] - c[0]).hypot(m.centre_px[1] - c[1]));
-            }
-        }
-    }
+    let (_, refitted, worst) = crescents(&obs, &views[0]);
     assert!(
         refitted >= n * 9 / 10 && worst[0] < 0.06 && worst[1] < 0.1,
         "refitted as a crescent in {refitted} of {n} frames; worst centres (a, b) {worst:.3?} px off"
