@@ -75,7 +75,12 @@ where
     let model = PixelModel::new(layering, hiding, back_disc, convolved, &smears_px);
     let eval = |p: &Vp<P>, px: &RingPixel, area: bool| model.eval::<P, N>(p, px, area);
     let mut p = Vp::<P>::zeros();
-    if let Rounds::AreaFrom(kept) = rounds {
+    // Where an earlier fit's box rounds stopped, if this one starts there.
+    let from = match rounds {
+        Rounds::AreaFrom(kept) | Rounds::BoxFrom(kept) => Some(kept),
+        Rounds::All | Rounds::Box => None,
+    };
+    if let Some(kept) = from {
         if kept.p.len() != P {
             return None;
         }
@@ -83,7 +88,11 @@ where
     } else {
         p[0] = background;
     }
-    let cold = !matches!(rounds, Rounds::AreaFrom(_));
+    // From the starts (the geometry given, the grey levels by linear least squares); the box
+    // rounds that find the dots; only those.
+    let cold = from.is_none();
+    let boxes = !matches!(rounds, Rounds::AreaFrom(_));
+    let box_only = matches!(rounds, Rounds::Box | Rounds::BoxFrom(_));
     for (k, st) in starts.iter().enumerate().filter(|_| cold) {
         let o = 1 + DISC_PARAMS * k;
         p[o] = st.centre[0];
@@ -430,10 +439,13 @@ where
     let mut at_p = Vec::with_capacity(keep.len());
     // The last box round's cost and JᵀJ (what a fit that stops there gives its σ from).
     let mut boxed = None;
-    if cold {
+    if boxes {
         evaluate(&p, &keep, false, &mut at_p);
     }
-    for round in (0..3).filter(|_| cold) {
+    // The first round's Cauchy scale, from the residuals where a fit from the starts begins
+    // (kept for a fit that starts where this one's box rounds stop: `Rounds::BoxFrom`).
+    let mut first_scale = 0.0;
+    for round in (0..3).filter(|_| boxes) {
         // Settled only to `settle_px`: the dots to reject are all that depend on it, and the final
         // round's model is smooth, so it converges to its own minimum from here. (With point
         // samples of a near step and of √ at the limb, that round zig-zagged and where it
@@ -449,7 +461,14 @@ where
         // the curvature and zig-zag (12 passes a fit). Measured on the same frames: v03 0.072
         // → 0.037 px, 38 varied-look recordings 0.0783 → 0.0741 px, 12 % fewer model
         // evaluations. In the later ones: see the final round below.
-        let robust = Some(CAUCHY_SCALE * robust_sigma(&at_p, &p));
+        let scale = match from {
+            Some(kept) if round == 0 => kept.first_scale,
+            _ => CAUCHY_SCALE * robust_sigma(&at_p, &p),
+        };
+        if round == 0 {
+            first_scale = scale;
+        }
+        let robust = Some(scale);
         let (cost, jtj, rows) = descend(&mut p, &keep, false, settle_px(round), robust, at_p);
         at_p = rows;
         boxed = Some((cost, jtj));
@@ -516,10 +535,10 @@ where
     // the other, its shading held symmetric, did not settle and came out 1.09 px off instead of
     // 0.79; lit by the front disc's lamp it settles, 0.036 px either way. At 1e-3 (session 38)
     // the centres moved 1 %.
-    let (cost, jtj) = match (rounds, boxed) {
-        (Rounds::Box, Some(b)) => b,
-        (Rounds::Box, None) => return None,
-        _ => {
+    let (cost, jtj) = match (box_only, boxed) {
+        (true, Some(b)) => b,
+        (true, None) => return None,
+        (false, _) => {
             evaluate(&p, &keep, true, &mut at_p);
             let final_robust = Some(CAUCHY_SCALE * robust_sigma(&at_p, &p));
             let (cost, jtj, _) = descend(&mut p, &keep, true, 3e-4, final_robust, at_p);
@@ -560,7 +579,7 @@ where
         };
     }
     // The pixels kept are those given, in order, less the ones dropped: one walk finds these.
-    let kept = (rounds == Rounds::Box).then(|| {
+    let kept = box_only.then(|| {
         let mut left = keep.iter().peekable();
         let rejected = pixels
             .iter()
@@ -577,6 +596,7 @@ where
             ring_len: pixels.len(),
             p: p.iter().copied().collect(),
             rejected,
+            first_scale,
         }
     });
     Some(Fitted {
@@ -595,6 +615,15 @@ pub(super) enum Rounds<'a> {
     /// The box rounds only: the fit as they leave it, and what the final round needs to start
     /// from there (`Fitted::kept`).
     Box,
+    /// The box rounds only, as `Box`, from where an earlier fit's box rounds stopped and with
+    /// its first round's scale, on a ring that may have lost pixels to dots since (the second
+    /// pass's): the rounds find the dots again from there. Why not from the starts: that is
+    /// the same descent again to nearly the same place (the linear start and the first round
+    /// were half of a fit's passes over its pixels); why with the kept scale: the first
+    /// round's Cauchy scale comes from the residuals where a fit begins, and a scale from the
+    /// small residuals at the minimum drops other pixels (session 38 started there with its
+    /// own scale: side-lit and cluttered looks' centres 17 % further off, docs/performance.md).
+    BoxFrom(&'a Kept),
     /// The final round only, from where an earlier fit's box rounds stopped, on the same
     /// pixels less those they dropped: what `All` would have done next (None if the pixels
     /// given are not as many as that fit's).
@@ -608,6 +637,8 @@ pub(crate) struct Kept {
     pub(super) ring_len: usize,
     p: Vec<f64>,
     rejected: Vec<[i32; 2]>,
+    /// The first box round's Cauchy scale (`Rounds::BoxFrom`).
+    first_scale: f64,
 }
 
 /// A grey-level fit's discs, their edge widths s (px), and after `Rounds::Box` what its final
