@@ -53,8 +53,9 @@ pub fn timed<T>(stage: Stage, f: impl FnOnce() -> T) -> T {
     out
 }
 
-/// Adds `n` evaluations of the grey-level circle model (`circle::profile`: one per pixel, nine
-/// per pixel the edge crosses in the last round) to this thread's count. A count, not a time:
+/// Adds `n` evaluations of the grey-level circle model (`circle::profile`: one per pixel, three
+/// per pixel the edge crosses in the last round, one per pixel for each of a fit's linear
+/// starts) to this thread's count. A count, not a time:
 /// the work the fits did, the same on any machine and under any load, so that a change to the
 /// fits can be compared where the clock scatters by ±15 %.
 pub(crate) fn count_model_samples(n: usize) {
