@@ -119,6 +119,11 @@ impl FitMemo {
         d
     }
 
+    /// Whether the fits asked for now are final (`start_second_pass` has been called).
+    pub(super) fn is_final(&self) -> bool {
+        self.second.load(Ordering::SeqCst)
+    }
+
     /// From now on the fits asked for are final (the second pass's, or a lone pass's:
     /// `survey::measure`).
     pub fn start_second_pass(&self) {

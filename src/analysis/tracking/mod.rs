@@ -536,7 +536,15 @@ impl Tracker {
                 let radii = cx.pass.radii(cx.i, vi);
                 let held = [fa, fb].map(|f| FirstPassDisc::near(radii, f.centre));
                 let pair = stages::timed(Stage::Circles, || {
-                    profile_fit_pair(cx.img, view, [fa, fb], lv.background, dots, held)
+                    profile_fit_pair(
+                        cx.img,
+                        view,
+                        [fa, fb],
+                        lv.background,
+                        dots,
+                        held,
+                        cx.memo.is_final(),
+                    )
                 });
                 if let Some(pair) = pair {
                     for (s, f) in pair.iter().enumerate() {

@@ -429,6 +429,9 @@ pub(crate) fn edge_is_blurred(s: f64) -> bool {
 /// hiding does not add up); None there and where the fit does not settle.
 ///
 /// `held`: each disc's, as for `profile_plan`: held where the edges are found blurred.
+/// `final_round`: false for the box rounds only (the first pass's, enough for dots and spins,
+/// as its lone discs'; the final round over each pixel's area was a twentieth of the fits'
+/// work on the independent renders, docs/performance.md session 54).
 pub fn profile_fit_pair(
     img: &GreyImage,
     view: &View,
@@ -436,6 +439,7 @@ pub fn profile_fit_pair(
     background: f64,
     dots: &[DotMask],
     held: [Option<FirstPassDisc>; 2],
+    final_round: bool,
 ) -> Option<[CircleFit; 2]> {
     let [a, b] = starts;
     let apart = (a.centre[0] - b.centre[0]).hypot(a.centre[1] - b.centre[1]);
@@ -454,7 +458,11 @@ pub fn profile_fit_pair(
             smears,
             1.0,
             false,
-            Rounds::All,
+            if final_round {
+                Rounds::All
+            } else {
+                Rounds::Box
+            },
         )
         .map(|f| (f.discs, f.widths))
     };

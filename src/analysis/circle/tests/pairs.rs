@@ -93,8 +93,16 @@ fn touching_discs_fitted_together_keep_the_side_that_faces_the_other() {
             profile_fit(&img, &view, &e, cfg.background_grey, other, &[]).unwrap_or(e)
         };
         let (fa, fb) = (fit(0), fit(1));
-        let pair = profile_fit_pair(&img, &view, [&fa, &fb], cfg.background_grey, &[], [None; 2])
-            .expect("two discs that do not overlap are fitted together");
+        let pair = profile_fit_pair(
+            &img,
+            &view,
+            [&fa, &fb],
+            cfg.background_grey,
+            &[],
+            [None; 2],
+            true,
+        )
+        .expect("two discs that do not overlap are fitted together");
         // Each centre's error along the line from it to the other, px.
         let u = [truth[1][0] - truth[0][0], truth[1][1] - truth[0][1]];
         let len = u[0].hypot(u[1]);
@@ -342,7 +350,7 @@ fn blurred_discs_fitted_together_with_their_radii_held_scatter_less() {
         let (Some(fa), Some(fb)) = (fit(0), fit(1)) else {
             continue;
         };
-        let Some(free) = profile_fit_pair(&img, &view, [&fa, &fb], bg, &[], [None; 2]) else {
+        let Some(free) = profile_fit_pair(&img, &view, [&fa, &fb], bg, &[], [None; 2], true) else {
             continue;
         };
         cases.push((img, truth, fa, fb, free));
@@ -364,7 +372,7 @@ fn blurred_discs_fitted_together_with_their_radii_held_scatter_less() {
                 smear_px: [0.0; 2],
             })
         });
-        let pair = profile_fit_pair(img, &view, [fa, fb], bg, &[], held)
+        let pair = profile_fit_pair(img, &view, [fa, fb], bg, &[], held, true)
             .expect("a pair fitted free is fitted held");
         for s in 0..2 {
             assert!((pair[s].radius - median).abs() < 1e-3, "radius not held");
