@@ -23,8 +23,9 @@ const EDGE_WIDTH_PX: (f64, f64) = (0.05, 3.0);
 /// shading's floor and slope (a sharp render's disc started at 0.5 px took 7–10 iterations to
 /// reach the floor); started at the floor alone, a defocused recording's fits took a third
 /// more. With both, the descents' model evaluations fell 16 % on the independent renders and
-/// 11 % on 12 of hw-sim's varied-look recordings, and the centres moved closer to the truth
-/// (docs/performance.md and docs/accuracy.md, session 54).
+/// 11 % on 12 of hw-sim's varied-look recordings (11 % on the renders with the linear starts'
+/// own passes counted), and the centres moved closer to the truth (docs/performance.md and
+/// docs/accuracy.md, session 54).
 const EDGE_WIDTH_STARTS_PX: [f64; 2] = [EDGE_WIDTH_PX.0, 0.5];
 
 /// Cauchy's loss ρ(r) = c²·ln(1 + (r/c)²) in every round of `fit_grey_levels`
