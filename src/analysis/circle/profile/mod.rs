@@ -673,8 +673,8 @@ mod tests {
             again.centre[0] - direct.centre[0],
             again.centre[1] - direct.centre[1],
         );
-        // (The box rounds after the first settle to 1e-3 px: 1.1e-4 px apart here, where the
-        // centre's σ is 0.007 px; 1266 evaluations against 3028.)
+        // (The box rounds after the first settle to 1e-3 px: 1.0e-4 px apart here, where the
+        // centre's σ is 0.007 px; 1266 evaluations against 2070, linear starts counted.)
         assert!(
             apart < 1e-3,
             "{apart} px from the whole fit with the dot masked"
