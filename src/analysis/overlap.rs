@@ -25,6 +25,7 @@
 
 use super::geometry::View;
 use super::tracking::{FrameObs, HiddenInPart, Measurement};
+use std::collections::HashMap;
 
 /// Fewer checks than this of a kind in a view, and its hidden fits are not used: the mean of
 /// one or two squares is too likely to be small by chance to stand for the rest.
@@ -45,7 +46,7 @@ pub(super) fn widen_hidden(obs: &mut [FrameObs], views: &[View]) -> Vec<String> 
             let mut hidden = 0usize;
             // Each checked fit's own squared disagreement along the line between the spheres
             // (its x disagreement over its cos²), by frame and sphere.
-            let mut own: Vec<((usize, usize), f64)> = Vec::new();
+            let mut own: HashMap<(usize, usize), f64> = HashMap::new();
             for (fi, f) in obs.iter().enumerate() {
                 for s in 0..2 {
                     let Some(m) = f.spheres[s][vi].as_ref() else {
@@ -73,7 +74,7 @@ pub(super) fn widen_hidden(obs: &mut [FrameObs], views: &[View]) -> Vec<String> 
                         let along = along_x(view, m.centre_px, f.spheres[1 - s][vi].as_ref());
                         sum_sq += d_sq;
                         sum_along_x += along;
-                        own.push(((fi, s), d_sq / along));
+                        own.insert((fi, s), d_sq / along);
                         checks += 1;
                     }
                 }
@@ -113,10 +114,7 @@ pub(super) fn widen_hidden(obs: &mut [FrameObs], views: &[View]) -> Vec<String> 
                         let widened = m.sigma_px.map(|sd| sd * sd + extra_sq);
                         // A fit the other view contradicts beyond what the view's hidden fits
                         // do together carries its own disagreement.
-                        let own_sq = own
-                            .iter()
-                            .find(|(at, _)| *at == (fi, s))
-                            .map_or(0.0, |&(_, d)| d);
+                        let own_sq = own.get(&(fi, s)).copied().unwrap_or(0.0);
                         let beyond = widened
                             .iter()
                             .any(|&w| own_sq > OWN_DISAGREEMENT_SIGMAS.powi(2) * w);

@@ -177,12 +177,7 @@ fn split_circles_keep_their_separation() {
 /// three quarters of a radius the refit is not tried.)
 #[test]
 fn a_disc_partly_behind_another_is_fitted_on_its_grey_levels() {
-    let view = test_view(ViewKind::Mirror, 80, 64, 2.1175, [39.3, 31.6], "+z");
-    let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
-    let cfg = hw_sim::LabConfig {
-        markers_per_sphere: 0,
-        ..Default::default()
-    };
+    let (view, r_px, cfg) = dotless_mirror_view();
     let (mut split_err, mut fitted_err) = (Vec::new(), Vec::new());
     for k in 0..24 {
         let kf = k as f64;
@@ -245,12 +240,7 @@ fn a_disc_partly_behind_another_is_fitted_on_its_grey_levels() {
 /// was refused for settling more than a pixel from its starts.
 #[test]
 fn a_crescent_pair_started_a_pixel_off_is_fitted_where_it_is() {
-    let view = test_view(ViewKind::Mirror, 80, 64, 2.1175, [39.3, 31.6], "+z");
-    let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
-    let cfg = hw_sim::LabConfig {
-        markers_per_sphere: 0,
-        ..Default::default()
-    };
+    let (view, r_px, cfg) = dotless_mirror_view();
     let mut errors = Vec::new();
     for k in 0..12 {
         let kf = k as f64;
@@ -450,4 +440,16 @@ fn a_disc_behind_another_lit_from_the_side_is_lit_by_the_front_ones_lamp() {
         rms < 0.03 && worst < 0.08 && worst_radius < 0.15,
         "the disc behind: centres {rms:.4} px RMS, worst {worst:.3} px; radius off by up to {worst_radius:.3} px"
     );
+}
+
+/// The mirror view the crescent tests draw a pair in (80×64, 2.1175 px/mm), the sphere's
+/// radius in it, px, and the simulator's scene without dots.
+fn dotless_mirror_view() -> (View, f64, hw_sim::LabConfig) {
+    let view = test_view(ViewKind::Mirror, 80, 64, 2.1175, [39.3, 31.6], "+z");
+    let r_px = SPHERE_RADIUS_MM * view.px_per_mm;
+    let cfg = hw_sim::LabConfig {
+        markers_per_sphere: 0,
+        ..Default::default()
+    };
+    (view, r_px, cfg)
 }
