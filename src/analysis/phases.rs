@@ -11,8 +11,9 @@ use nalgebra::Matrix2;
 
 mod series;
 
-use series::series_and_sigma;
-pub(super) use series::{diameter_drift_velocity, series, stray_velocity, x_views_disagree};
+pub(super) use series::{
+    diameter_drift_velocity, series, series_and_sigma, stray_velocity, x_views_disagree,
+};
 
 /// Fewer frames than this of a phase in the primary view, and the phase is the span any view
 /// saw the sphere in.

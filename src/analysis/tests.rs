@@ -62,6 +62,7 @@ fn frame_of_a(k: usize, dt: f64, centres_px: [[f64; 2]; 2], radius_stray_px: f64
             markers: Vec::new(),
             hidden_in_part: None,
             radius_stray_px,
+            sigma_common_px: 0.0,
         })
     };
     FrameObs {
@@ -318,6 +319,44 @@ fn a_run_of_misfit_radii_at_one_end_of_a_phase_bounds_its_velocity() {
         shift[2] > 0.0,
         "the mirror's z has the same strays: {shift:?}"
     );
+}
+
+/// The part of the centres' σ every frame shares (`radius_misfit::widen_against_the_map`)
+/// moves a phase's line, not its slope: the σ floor its fit takes from the centres leaves it
+/// out, while the same σ not marked as shared is taken in.
+#[test]
+fn a_shared_misfit_widens_the_centres_but_not_their_lines_slope() {
+    let cfg = Config::default_config();
+    let views = geometry::views(&cfg);
+    let frames: Vec<usize> = (0..30).collect();
+    let widened = |shared: bool| {
+        let mut obs = steady_phase_of_a(&views, &|_| 0.0);
+        for m in obs
+            .iter_mut()
+            .flat_map(|f| f.spheres[0].iter_mut().flatten())
+        {
+            m.sigma_px = m.sigma_px.map(|s| (s * s + 0.01).sqrt());
+            m.sigma_common_px = if shared { 0.1 } else { 0.0 };
+        }
+        phases::series_and_sigma(&obs, &views, 0, &frames).1
+    };
+    let plain =
+        phases::series_and_sigma(&steady_phase_of_a(&views, &|_| 0.0), &views, 0, &frames).1;
+    let shared = widened(true);
+    let own = widened(false);
+    for axis in 0..3 {
+        assert!(
+            (shared[axis] - plain[axis]).abs() < 1e-12 * plain[axis],
+            "axis {axis}: {} against {} mm",
+            shared[axis],
+            plain[axis]
+        );
+        assert!(
+            own[axis] > 5.0 * plain[axis],
+            "axis {axis}: {} mm",
+            own[axis]
+        );
+    }
 }
 
 /// A phase of 30 frames whose diameters rise by 0.1 px in both views, steadily (a blurred

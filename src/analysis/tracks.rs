@@ -121,6 +121,7 @@ pub fn read(
             markers: Vec::new(),
             hidden_in_part: None,
             radius_stray_px: 0.0,
+            sigma_common_px: 0.0,
         });
     }
     if frames.is_empty() {

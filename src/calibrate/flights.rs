@@ -257,6 +257,7 @@ mod tests {
                         markers: Vec::new(),
                         hidden_in_part: None,
                         radius_stray_px: 0.0,
+                        sigma_common_px: 0.0,
                     })
                 };
                 let d = 13.7 + 0.02 * ((k % 5) as f64 - 2.0);

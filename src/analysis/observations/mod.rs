@@ -102,6 +102,8 @@ fn place(mut obs: Vec<FrameObs>, mut views: Vec<View>, cfg: &Config) -> Placed {
     } else {
         0.0
     };
+    let diameters_mm = [cfg.spheres.sphere(0).0, cfg.spheres.sphere(1).0];
+    radius_misfit::widen_against_the_map(&mut obs, &views, diameters_mm);
     notes.extend(overlap::widen_hidden(&mut obs, &views));
     Placed {
         views,

@@ -26,7 +26,7 @@ pub(in crate::analysis) fn series(
 /// whose σ is larger than the median (`overlap`: its σ holds what its own fit cannot see).
 /// Why not every centre by its σ: the others' σ come from their own fits and vary with
 /// noise more than their errors do; the weights would then follow the noise.
-pub(super) fn series_and_sigma(
+pub(in crate::analysis) fn series_and_sigma(
     obs: &[FrameObs],
     views: &[View],
     s: usize,
@@ -97,8 +97,17 @@ fn series_with(
                 }
                 out[axis].push((f.time_s, val));
                 if let Some(sigmas) = sigmas.as_deref_mut() {
-                    let sigma_mm =
-                        m.sigma_px[0].hypot(m.sigma_px[1]) / 2f64.sqrt() / view.px_per_mm;
+                    // (Without the part every frame shares, which moves the line, not its
+                    // slope: `Measurement::sigma_common_px`.)
+                    let all_px = m.sigma_px[0].hypot(m.sigma_px[1]) / 2f64.sqrt();
+                    let own_px = if m.sigma_common_px > 0.0 {
+                        (all_px * all_px - m.sigma_common_px.powi(2))
+                            .max(0.0)
+                            .sqrt()
+                    } else {
+                        all_px
+                    };
+                    let sigma_mm = own_px / view.px_per_mm;
                     sigmas[axis].push((
                         sigma_mm,
                         m.hidden_in_part.is_some(),

@@ -292,6 +292,7 @@ pub(super) fn measure_blob(
         },
         hidden_in_part: None,
         radius_stray_px: 0.0,
+        sigma_common_px: 0.0,
     };
     Ok((m, f))
 }

@@ -46,6 +46,11 @@ pub struct Measurement {
     /// (`radius_misfit`; 0 until it has looked): a misfit of the disc's model, already in
     /// `sigma_px`, and one that neighbouring frames may share.
     pub radius_stray_px: f64,
+    /// The part of each axis's σ, px, that the sphere's centres in this view share from frame
+    /// to frame (`radius_misfit::widen_against_the_map`: a misfit the look makes alike in every
+    /// frame), already in `sigma_px`. It moves a trajectory as a whole, not its velocity, so the
+    /// line fits leave it out (`phases::series`).
+    pub sigma_common_px: f64,
 }
 
 #[cfg(test)]
@@ -62,6 +67,7 @@ impl Measurement {
             markers: Vec::new(),
             hidden_in_part: None,
             radius_stray_px: 0.0,
+            sigma_common_px: 0.0,
         }
     }
 }

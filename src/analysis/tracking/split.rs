@@ -250,6 +250,7 @@ impl Tracker {
                             HiddenInPart::Outline
                         }),
                         radius_stray_px: 0.0,
+                        sigma_common_px: 0.0,
                     });
                     self.memory[vi].last[s] = Some(f.centre);
                     self.memory[vi].history[s].push((t, f.centre));

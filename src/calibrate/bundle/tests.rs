@@ -55,6 +55,7 @@ fn flights_through_at(
                     markers: Vec::new(),
                     hidden_in_part: None,
                     radius_stray_px: 0.0,
+                    sigma_common_px: 0.0,
                 });
             }
             phases[k].push(obs.len());
