@@ -13,6 +13,7 @@ mod backdrop;
 pub(crate) mod calibration;
 pub mod circle;
 pub mod detect;
+mod flight_misfit;
 pub mod geometry;
 mod geometry_sigma;
 mod handedness;

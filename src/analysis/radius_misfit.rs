@@ -60,7 +60,7 @@ pub(super) fn widen(obs: &mut [FrameObs]) {
 /// view's discs came out 0.3–0.6 px small in diameter and their centres 0.15–0.27 px off
 /// towards the lamp, at a claimed 0.05–0.09 px; under gamma 0.6, 0.06 px large and 0.03 px
 /// off at a claimed 0.015. With this, on 17 sets of eight such renders, centres beyond 5σ
-/// 150 → 20 and beyond 3σ 908 → 278 (mixed 47.6 → 62.0 % within ±1σ, gamma 42.5 → 72.2 %);
+/// 150 → 20 and beyond 3σ 888 → 243 (mixed 47.6 → 62.0 % within ±1σ, gamma 42.5 → 72.2 %);
 /// on hw-sim's 190 varied-look recordings 73.1 → 79.7 % (docs/accuracy.md, session 55).
 /// The widening is shared by the sphere's centres in the view (`sigma_common_px`), which
 /// the line fits leave out: it moves a trajectory, not its slope. Its limit: a view whose

@@ -359,6 +359,77 @@ fn a_shared_misfit_widens_the_centres_but_not_their_lines_slope() {
     }
 }
 
+/// The centres the report gives carry their scatter about the flight fitted through them: a
+/// view whose centres scatter three times their σ about it has its σ scaled by the scatter
+/// (from the median, so one blunder does not set it), a blunder beyond 3σ of that carries
+/// its own disagreement, and centres on their flight keep their σ.
+#[test]
+fn centres_that_scatter_about_their_flight_beyond_their_sigma_say_so_in_the_report() {
+    let cfg = Config::default_config();
+    let views = geometry::views(&cfg);
+    let frames: Vec<usize> = (0..30).collect();
+    let mut obs = steady_phase_of_a(&views, &|_| 0.0);
+    // The direct view's centres ±0.06 px off their flight in u, alternating (σ 0.02 px); frame
+    // 20's 1 px off in v.
+    for (k, f) in obs.iter_mut().enumerate() {
+        let m = f.spheres[0][0].as_mut().unwrap();
+        m.centre_px[0] += if k.is_multiple_of(2) { 0.06 } else { -0.06 };
+        if k == 20 {
+            m.centre_px[1] += 1.0;
+        }
+    }
+    let (series, floor, weights) = phases::series_and_sigma(&obs, &views, 0, &frames);
+    let fit = SideFit::fit_weighted(&series, &weights, 0.0, 0.0, floor);
+    let fits: Fits = [fit; 4];
+    let ph = [frames.clone(), Vec::new(), Vec::new(), Vec::new()];
+    let reported = flight_misfit::widened(&obs, &views, &fits, &ph, 0.0, 0.0);
+    // What each centre's error is, about the flight actually fitted (the alternation leaves it
+    // a few thousandths of a pixel off the true one).
+    let errors: Vec<[f64; 2]> = frames
+        .iter()
+        .map(|&k| {
+            let (p, _) = kinematics::pos_vel(&fit, obs[k].time_s, 0.0);
+            let c = views[0].project(&p);
+            let m = obs[k].spheres[0][0].as_ref().unwrap();
+            [m.centre_px[0] - c[0], m.centre_px[1] - c[1]]
+        })
+        .collect();
+    let direct = |k: usize| reported[k].spheres[0][0].as_ref().unwrap().sigma_px;
+    let within = frames
+        .iter()
+        .filter(|&&k| k != 20)
+        .filter(|&&k| errors[k][0].abs() <= direct(k)[0])
+        .count();
+    assert_eq!(
+        within, 29,
+        "u: every centre but the blunder within its σ now"
+    );
+    assert!(
+        errors[20][1].abs() < 1.5 * direct(20)[1] && direct(20)[1] > 0.9,
+        "the blunder's v σ {:.3} px for an error of {:.3}",
+        direct(20)[1],
+        errors[20][1]
+    );
+    // The mirror view's centres lie on the flight: their σ as they were.
+    for &k in &frames {
+        assert_eq!(
+            reported[k].spheres[0][1].as_ref().unwrap().sigma_px,
+            obs[k].spheres[0][1].as_ref().unwrap().sigma_px
+        );
+    }
+    // Without the scatter, nothing changes in the direct view either.
+    let clean = steady_phase_of_a(&views, &|_| 0.0);
+    let (series, floor, weights) = phases::series_and_sigma(&clean, &views, 0, &frames);
+    let fit = SideFit::fit_weighted(&series, &weights, 0.0, 0.0, floor);
+    let kept = flight_misfit::widened(&clean, &views, &[fit; 4], &ph, 0.0, 0.0);
+    for &k in &frames {
+        assert_eq!(
+            kept[k].spheres[0][0].as_ref().unwrap().sigma_px,
+            [0.02, 0.02]
+        );
+    }
+}
+
 /// A phase of 30 frames whose diameters rise by 0.1 px in both views, steadily (a blurred
 /// disc's held radius drifting along its phase): half that rise in mm/s, split over each
 /// view's two axes, comes back as the velocity it may have moved; diameters that only

@@ -46,6 +46,8 @@ struct Figures {
     /// (quantity, error, error / σ).
     estimates: Vec<(String, f64, f64)>,
     centre_errors_px: Vec<f64>,
+    /// Each measured centre's error over its reported σ, per image axis.
+    centre_z: Vec<f64>,
     centres_expected: usize,
 }
 
@@ -228,11 +230,17 @@ fn compare(dir: &Path, frames: &Path) -> Result<Figures, String> {
                     continue;
                 };
                 f.centres_expected += 1;
-                let got = track.map(|t| &t[s][view]["centre_px"]);
+                let got = track.map(|t| &t[s][view]);
                 if let Some(g) = got {
-                    if let (Some(u), Some(v)) = (num(&g[0]), num(&g[1])) {
+                    let c = &g["centre_px"];
+                    if let (Some(u), Some(v)) = (num(&c[0]), num(&c[1])) {
                         f.centre_errors_px
                             .push((u - cells[iu]).hypot(v - cells[iv]));
+                        let sd = &g["uncertainty_px"];
+                        if let (Some(su), Some(sv)) = (num(&sd[0]), num(&sd[1])) {
+                            f.centre_z.push((u - cells[iu]) / su.max(1e-300));
+                            f.centre_z.push((v - cells[iv]) / sv.max(1e-300));
+                        }
                     }
                 }
             }
@@ -410,6 +418,7 @@ pub fn validation(dir: &Path, saved_as: &[SavedAs]) -> Result<String, String> {
         "", "Δe", "Δψ1", "Δψ2", "Δβ", "centre RMS", "found", "max |z|"
     );
     let mut all_z = Vec::new();
+    let mut centre_z: Vec<f64> = Vec::new();
     // Which estimates lie beyond 5σ, named, so that a regression shows where it is.
     let mut far: Vec<String> = Vec::new();
     for r in &rows {
@@ -449,6 +458,7 @@ pub fn validation(dir: &Path, saved_as: &[SavedAs]) -> Result<String, String> {
                     .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()))
                     .map_or(String::new(), |e| e.0.clone());
                 all_z.extend(zs);
+                centre_z.extend(f.centre_z.iter().filter(|z| z.is_finite()));
                 far.extend(
                     f.estimates
                         .iter()
@@ -524,6 +534,18 @@ pub fn validation(dir: &Path, saved_as: &[SavedAs]) -> Result<String, String> {
         },
         calibrated_components.len() - within(&calibrated_components, 3.0),
         calibrated_components.len() - within(&calibrated_components, 5.0),
+    );
+    let _ = writeln!(
+        out,
+        "centres' σ, every measured centre and image axis ({} values): {:.1} % within ±1σ (68.3 % if honest), {} beyond 3σ, {} beyond 5σ",
+        centre_z.len(),
+        if centre_z.is_empty() {
+            f64::NAN
+        } else {
+            100.0 * within(&centre_z, 1.0) as f64 / centre_z.len() as f64
+        },
+        centre_z.len() - within(&centre_z, 3.0),
+        centre_z.len() - within(&centre_z, 5.0),
     );
     let analysed = rows.iter().filter(|r| r.outcome.is_ok()).count();
     let covered = all_z.iter().filter(|z| z.abs() <= 1.0).count();

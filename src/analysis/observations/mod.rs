@@ -11,6 +11,7 @@ mod spins;
 pub(super) use spins::{first_pass_source, widen_by_first_pass};
 
 use super::calibration::{self, calibrate_mirror};
+use super::flight_misfit;
 use super::geometry::View;
 use super::kinematics::{derive, Bodies, Fits, ImpactError, SideFit};
 use super::phases::{self, fit_all, flight_phases, phases_missing_axis};
@@ -368,10 +369,13 @@ pub(super) fn observations_once(
         &mut warnings,
     );
     let beta = beta_where_defined(d.beta.zip(sd.beta), d.psi1.zip(sd.psi1), &mut warnings);
+    // The centres as reported: their σ checked against the flights (the second pass and the
+    // estimates keep their own).
+    let reported = flight_misfit::widened(&obs, &views, &fits, &ph, split, set.g);
     let report = assemble::Parts {
         info,
         views: &views,
-        obs: &obs,
+        obs: &reported,
         fits: &fits,
         derived: &d,
         sigma: &sd,

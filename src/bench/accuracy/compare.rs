@@ -3,6 +3,7 @@
 //! on the same frames (`analyse_case`, for `run_case` and `--sessions`).
 
 use super::*;
+use crate::analysis::geometry::ViewKind;
 
 fn v3(v: &Value) -> V3 {
     V3::new(
@@ -167,6 +168,17 @@ pub(super) fn analyse_case(
                 .collect()
         })
         .unwrap_or_default();
+    // Each centre's σ as the report gives it (`flight_misfit`: the observations' own, checked
+    // against the flights), by frame, sphere and view.
+    let reported_sigma = |frame_id: u64, s: usize, kind: ViewKind| -> Option<[f64; 2]> {
+        let t = report.tracks.iter().find(|t| t.frame_id == frame_id)?;
+        let sphere = if s == 0 { t.a.as_ref() } else { t.b.as_ref() }?;
+        let view = match kind {
+            ViewKind::Direct => sphere.direct.as_ref(),
+            ViewKind::Mirror => sphere.mirror.as_ref(),
+        }?;
+        Some(view.uncertainty_px)
+    };
     for f in &details.obs {
         let Some(tf) = frames.get(&f.frame_id) else {
             continue;
@@ -180,9 +192,10 @@ pub(super) fn analyse_case(
                 };
                 out.centre_err_px
                     .push((m.centre_px[0] - tu).hypot(m.centre_px[1] - tv));
+                let sigma_px = reported_sigma(f.frame_id, s, view.kind).unwrap_or(m.sigma_px);
                 for (err, sigma) in [m.centre_px[0] - tu, m.centre_px[1] - tv]
                     .into_iter()
-                    .zip(m.sigma_px)
+                    .zip(sigma_px)
                 {
                     if sigma > 0.0 && sigma.is_finite() {
                         out.centre_z.push(err / sigma);
