@@ -79,7 +79,9 @@ impl Tracker {
             }
             return;
         }
-        if self.memory[0].both_in_previous || !self.memory[1].both_in_previous {
+        if self.memory[0].both_in_previous
+            || !(self.memory[1].both_in_previous || self.secondary_by_one_track)
+        {
             return;
         }
         let (Some(pa), Some(pb)) = (x(0, 0), x(0, 1)) else {

@@ -175,6 +175,38 @@ pub(super) fn assign_by_prediction<'a>(
     (each_close < radius_px && worst > 3.0 * best).then_some(labels)
 }
 
+/// Labels two blobs by the one sphere this view saw in its last frame, where it did not see
+/// the other (`ViewMemory::predict` within `max_gap_s` for that sphere alone): the blob within
+/// `radius_px` of where that sphere's own track puts it now is that sphere, the other blob the
+/// other sphere, when the other blob is at least three times as far from it; None otherwise.
+/// Why: after an impact whose normal leans out of the primary view's plane, the primary can
+/// lose both spheres for a few frames and name them again by tracks that cross the impact's
+/// kink, while this view followed one of them through (an independent render under side light
+/// and cast shadows: both views swapped from the frame after, and no impact found).
+pub(super) fn assign_by_one_track<'a>(
+    blobs: &'a [Blob],
+    memory: &ViewMemory,
+    t: f64,
+    max_gap_s: f64,
+    radius_px: f64,
+) -> Option<[Option<&'a Blob>; 2]> {
+    let (s, c) = match [0, 1].map(|s| memory.predict(s, t, max_gap_s)) {
+        [Some(c), None] => (0, c),
+        [None, Some(c)] => (1, c),
+        _ => return None,
+    };
+    let [p, q] = blobs else { return None };
+    let d = |b: &Blob| (b.centroid[0] - c[0]).hypot(b.centroid[1] - c[1]);
+    let (near, far) = if d(p) <= d(q) { (p, q) } else { (q, p) };
+    if d(near) >= radius_px || d(far) <= 3.0 * d(near) || p.merged || q.merged {
+        return None;
+    }
+    let mut out = [None, None];
+    out[s] = Some(near);
+    out[1 - s] = Some(far);
+    Some(out)
+}
+
 /// What the labelling remembers per view.
 #[derive(Clone, Default)]
 pub(super) struct ViewMemory {
@@ -285,5 +317,38 @@ mod tests {
         // A diameter apart.
         let apart = [blob(114.0, 137.0), blob(128.0, 151.0)];
         assert!(x_names_both(&apart, mirror, [x(114.2), x(127.9)]));
+    }
+
+    /// Two blobs where this view saw only a in its last frames (b hidden since before the
+    /// impact): the blob on a's own track is a, the other b — whichever side of it b comes out
+    /// on; not where the blob on a's track is a radius off it, nor where the other is nearly as
+    /// close, nor where b's track is recent too (then both tracks decide).
+    #[test]
+    fn one_sphere_followed_into_the_frame_names_both() {
+        let dt = 1e-3;
+        let mut memory = ViewMemory::default();
+        // a at frames 19–21 moving down the view 1.5 px a frame; b last seen at frame 14.
+        memory.history[0] = (19..=21)
+            .map(|k| (k as f64 * dt, [114.5, 150.0 + 1.5 * (k - 19) as f64]))
+            .collect();
+        memory.history[1] = vec![(14.0 * dt, [130.0, 142.0])];
+        let (t, gap, radius) = (22.0 * dt, 1.5e-3, 6.2);
+        for other in [blob(122.4, 136.3), blob(106.0, 150.0)] {
+            let on_track = blob(114.4, 154.5);
+            let pair = [other.clone(), on_track.clone()];
+            let named = assign_by_one_track(&pair, &memory, t, gap, radius).expect("named");
+            assert_eq!(named[0].map(|b| b.centroid), Some(on_track.centroid));
+            assert_eq!(named[1].map(|b| b.centroid), Some(other.centroid));
+        }
+        // The blob on a's track 7 px off it (beyond the radius): nothing.
+        let off = [blob(122.4, 136.3), blob(114.4, 161.5)];
+        assert!(assign_by_one_track(&off, &memory, t, gap, radius).is_none());
+        // The other blob less than three times as far from a's track: nothing.
+        let near = [blob(114.4, 155.0), blob(115.4, 155.2)];
+        assert!(assign_by_one_track(&near, &memory, t, gap, radius).is_none());
+        // b seen in the last frame too: not this rule's to decide.
+        memory.history[1].push((21.0 * dt, [121.2, 138.6]));
+        let pair = [blob(122.4, 136.3), blob(114.4, 154.5)];
+        assert!(assign_by_one_track(&pair, &memory, t, gap, radius).is_none());
     }
 }

@@ -23,8 +23,8 @@ mod walk;
 
 pub use ahead::FitMemo;
 use identity::{
-    assign, assign_by_continuity, assign_by_prediction, assign_by_x, extrapolate, x_names_both,
-    ViewMemory,
+    assign, assign_by_continuity, assign_by_one_track, assign_by_prediction, assign_by_x,
+    extrapolate, x_names_both, ViewMemory,
 };
 use measure::{fit_from_track, may_hold_both, measure_blob, measure_touching, BlobFit};
 
@@ -189,6 +189,10 @@ struct Tracker {
     held: Vec<Option<held::Run>>,
     /// Per view, whether this frame's measurements there belong to its held run.
     holding_now: Vec<bool>,
+    /// Whether the secondary view named both spheres this frame by the one it followed from
+    /// its last frame (`identity::assign_by_one_track`), which the primary's labels are then
+    /// checked against (`check_primary_against_secondary`).
+    secondary_by_one_track: bool,
     /// Held runs named since: (frame index, view index, [a, b]), for the walk to put in place.
     released: held::Released,
     /// Primary-view world x of each sphere: (time s, x mm), most recent last.
@@ -205,6 +209,7 @@ impl Tracker {
             memory: vec![ViewMemory::default(); views],
             held: (0..views).map(|_| None).collect(),
             holding_now: vec![false; views],
+            secondary_by_one_track: false,
             released: Vec::new(),
             x_history: [Vec::new(), Vec::new()],
             unmeasured: Vec::new(),
@@ -238,6 +243,7 @@ impl Tracker {
             self.label_by_secondary_x(cx, &blob, &lv, &mut spheres);
         }
         self.check_primary_against_secondary(cx, &mut spheres);
+        self.secondary_by_one_track = false;
         if let Some((blob, lv)) = primary_lone {
             self.split_primary_by_secondary(cx, &blob, &lv, &mut spheres);
         }
@@ -352,8 +358,19 @@ impl Tracker {
         } else {
             None
         };
+        // A secondary view that followed one sphere into this frame, where the primary lost
+        // both since its last frame: by that one's own track (`assign_by_one_track`).
+        let by_one_track =
+            if vi > 0 && by_track.is_none() && !self.memory[0].both_in_previous && blobs.len() == 2
+            {
+                assign_by_one_track(&blobs, &self.memory[vi], cx.t, 0.5 * self.recent_s, r_mean)
+            } else {
+                None
+            };
+        self.secondary_by_one_track |= by_one_track.is_some();
         let mut assigned = match primary_x {
             _ if by_track.is_some() => by_track.unwrap_or([None, None]),
+            _ if by_one_track.is_some() => by_one_track.unwrap_or([None, None]),
             // Closer in x than a diameter, one may hide the other in this view: a single
             // blob is then both, partly, and neither centre can be trusted.
             [Some(xa), Some(xb)] if (xa - xb).abs() < contact_mm && blobs.len() < 2 => {
