@@ -6,6 +6,8 @@
 //! 110 and 3124 of the varied looks: both views swapped, "no impact found"). Here the names
 //! after the impact are turned round in a view where that makes the tracks meet far better.
 
+use super::geometry::View;
+use super::phases;
 use super::tracking::FrameObs;
 
 /// Frames either side of the impact whose positions are extrapolated to it.
@@ -43,6 +45,48 @@ fn meet(obs: &[FrameObs], frames: &[usize], s: usize, vi: usize, t: f64) -> Opti
         Some(sol[0])
     };
     Some([fit(0)?, fit(1)?])
+}
+
+/// When to check the names at, s: the spheres' closest approach where both views see both
+/// (`phases::closest_approach`), moved into the frames next to it where they did not — after
+/// it if the spheres were still coming closer there, before it if they were already leaving
+/// each other — to where the separation, at the rate it changed into (out of) the closest
+/// frame, reaches `contact_mm` (at most to the far end of those frames). Why: a view that
+/// loses the spheres at the impact (one silhouette) has its closest frame at one end of that
+/// gap, and the tracks extrapolated to it from the far side then cross the impact's kink (an
+/// independent render under side light and cast shadows: closest 2 ms before the impact in one
+/// pass and 5 ms after it in the other, and its names turned round wrongly in both). Not the
+/// gap's middle: tracks extrapolated past the impact from the near side cross it too (the
+/// same renders with dust: a gap of three frames, its middle 1 ms after the impact, swapped).
+pub(super) fn check_time(obs: &[FrameObs], views: &[View], contact_mm: f64) -> Option<f64> {
+    let seps = phases::separations_mm(obs, views);
+    let Some(i) = (0..seps.len()).min_by(|&a, &b| seps[a].1.total_cmp(&seps[b].1)) else {
+        return phases::closest_approach(obs, views, 0).map(|(t, _)| t);
+    };
+    let (t, d) = seps[i];
+    // The frame period: the shortest step between frames.
+    let period = obs
+        .windows(2)
+        .map(|w| w[1].time_s - w[0].time_s)
+        .filter(|dt| *dt > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    let before = i.checked_sub(1).map(|j| seps[j]);
+    let after = seps.get(i + 1).copied();
+    let gap = |a: f64, b: f64| (b - a).abs() > 1.5 * period;
+    // From `t` towards `end` at the separation's rate `rate_mm_s` (its magnitude), to contact.
+    let to_contact = |end: f64, rate_mm_s: f64| {
+        let dt = ((d - contact_mm).max(0.0) / rate_mm_s.max(1e-9)).min((end - t).abs());
+        t + dt * (end - t).signum()
+    };
+    match (before, after) {
+        (Some(p), Some(n)) if gap(t, n.0) && p.1 > d => {
+            Some(to_contact(n.0, (p.1 - d) / (t - p.0)))
+        }
+        (Some(p), Some(n)) if gap(p.0, t) && n.1 > d => {
+            Some(to_contact(p.0, (n.1 - d) / (n.0 - t)))
+        }
+        _ => Some(t),
+    }
 }
 
 /// Turns the names a and b round after `split_s` in each view where the tracks before and
@@ -165,5 +209,51 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Spheres meeting head-on along x at t = 20 ms (each 1 mm/ms, contact at 6.35 mm), both
+    /// views seeing both except in `lost` frames: the names are checked at the contact the
+    /// separation's rate next to the gap gives, not at the gap's edge.
+    #[test]
+    fn the_names_are_checked_where_the_separation_reaches_contact_inside_a_gap() {
+        let cfg = crate::config::Config::default_config();
+        let views = crate::analysis::geometry::views(&cfg);
+        let contact_mm = cfg.spheres.contact_mm();
+        let recording = |lost: std::ops::RangeInclusive<usize>| -> Vec<FrameObs> {
+            (0..40)
+                .map(|k| {
+                    let t = k as f64 * 1e-3;
+                    let half = 0.5 * contact_mm + (t - 0.020).abs() * 1e3;
+                    let at = |x: f64| {
+                        let p = crate::analysis::geometry::V3::new(x, 10.0, 0.0);
+                        views
+                            .iter()
+                            .map(|v| Some(Measurement::test_at(v.project(&p))))
+                            .collect::<Vec<_>>()
+                    };
+                    let (a, b) = if lost.contains(&k) {
+                        (vec![None, None], vec![None, None])
+                    } else {
+                        (at(-half), at(half))
+                    };
+                    FrameObs {
+                        index: k as u64,
+                        frame_id: k as u64,
+                        time_s: t,
+                        spheres: [a, b],
+                        position_mm: [None, None],
+                    }
+                })
+                .collect()
+        };
+        // Lost from 19 ms to 22 ms: closest at 18 ms, still coming closer.
+        let t = check_time(&recording(19..=22), &views, contact_mm).expect("a time");
+        assert!((t - 0.020).abs() < 1e-6, "{t}");
+        // Lost from 16 ms to 21 ms: closest at 22 ms, already leaving.
+        let t = check_time(&recording(16..=21), &views, contact_mm).expect("a time");
+        assert!((t - 0.020).abs() < 1e-6, "{t}");
+        // Nothing lost: the closest frame itself.
+        let t = check_time(&recording(99..=99), &views, contact_mm).expect("a time");
+        assert!((t - 0.020).abs() < 1e-9, "{t}");
     }
 }

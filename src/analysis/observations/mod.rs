@@ -85,8 +85,8 @@ fn place(mut obs: Vec<FrameObs>, mut views: Vec<View>, cfg: &Config) -> Placed {
     markers::drop_in_the_other_disc(&mut obs);
     // Names checked through the impact before anything pairs the spheres' frames up (the
     // closest approach does not depend on the names).
-    let mut notes = match phases::closest_approach(&obs, &views, 0) {
-        Some((t, _)) => {
+    let mut notes = match names_through_impact::check_time(&obs, &views, cfg.spheres.contact_mm()) {
+        Some(t) => {
             let names: Vec<&str> = views.iter().map(|v| v.kind.name()).collect();
             let r_mm = cfg.spheres.sphere(0).0.min(cfg.spheres.sphere(1).0) / 2.0;
             let radii_px: Vec<f64> = views.iter().map(|v| v.px_per_mm * r_mm).collect();
