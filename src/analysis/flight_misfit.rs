@@ -20,7 +20,8 @@
 //! flight's offset takes up (the texture's 0.03–0.1 px per sphere and view).
 
 use super::geometry::View;
-use super::kinematics::{self, Fits};
+use super::kinematics::Fits;
+use super::phases;
 use super::tracking::FrameObs;
 
 /// A centre further than this many of its (scaled) σ from its flight carries the disagreement
@@ -47,27 +48,21 @@ pub(super) fn widened(
     g: f64,
 ) -> Vec<FrameObs> {
     let mut out = obs.to_vec();
-    for (k, frames) in ph.iter().enumerate() {
+    let points = phases::on_flights(obs, views, fits, ph, split, g);
+    for k in 0..4 {
         let s = k % 2;
-        if fits[k].axes.iter().any(|a| a.is_none()) {
-            continue;
-        }
-        for (vi, view) in views.iter().enumerate() {
+        for vi in 0..views.len() {
             // (frame, residual per axis, its own σ per axis: without the part every frame
-            // shares, which the flight's offset takes up, `Measurement::sigma_common_px`)
+            // shares, which the flight's offset takes up, `Measurement::own_sigma_px`)
             let mut seen: Vec<(usize, [f64; 2], [f64; 2])> = Vec::new();
-            for &i in frames {
-                let Some(m) = obs.get(i).and_then(|f| f.spheres[s].get(vi)?.as_ref()) else {
+            for q in points.iter().filter(|q| q.phase == k && q.view == vi) {
+                let Some(m) = obs[q.frame].spheres[s][vi].as_ref() else {
                     continue;
                 };
-                let (p, _) = kinematics::pos_vel(&fits[k], obs[i].time_s - split, g);
-                let c = view.project(&p);
-                let own = m
-                    .sigma_px
-                    .map(|sd| (sd * sd - m.sigma_common_px.powi(2)).max(0.0).sqrt());
-                let d = [m.centre_px[0] - c[0], m.centre_px[1] - c[1]];
+                let own = m.own_sigma_px();
+                let d = [m.centre_px[0] - q.at_px[0], m.centre_px[1] - q.at_px[1]];
                 if d.iter().chain(&own).all(|x| x.is_finite()) && own.iter().all(|&x| x > 0.0) {
-                    seen.push((i, d, own));
+                    seen.push((q.frame, d, own));
                 }
             }
             if seen.len() < MIN_CENTRES {

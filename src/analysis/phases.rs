@@ -2,7 +2,7 @@
 //! from it while they stay on the ballistic track), the ballistic fits of the four phases on
 //! the per-axis series the views give (`series`), and the axes every phase measured.
 
-use super::geometry::View;
+use super::geometry::{View, V3};
 use super::kinematics::{self, Fits, SideFit};
 use super::line_fit::LineFit;
 use super::markers;
@@ -242,6 +242,56 @@ pub(super) fn fit_all(
     fits
 }
 
+/// A centre measured in a phase (`on_flights`) and where that phase's fit puts its sphere at
+/// the frame.
+pub(super) struct OnFlight {
+    /// The phase, 0–3: a before, b before, a after, b after (the sphere is `phase % 2`).
+    pub(super) phase: usize,
+    /// Index into the observations.
+    pub(super) frame: usize,
+    /// Index into the views.
+    pub(super) view: usize,
+    /// The fit's point at the frame's time, world mm, and its image in the view, px.
+    pub(super) at_mm: V3,
+    pub(super) at_px: [f64; 2],
+}
+
+/// Every centre measured in the frames of a phase `ph` whose fit has every axis, with where
+/// that fit (referenced at `split`) puts its sphere: phase by phase, frame by frame, view by
+/// view. What the markers are lifted about (`relift_on_trajectories`) and what the reported
+/// centres' σ are checked against (`flight_misfit`).
+pub(super) fn on_flights(
+    obs: &[FrameObs],
+    views: &[View],
+    fits: &Fits,
+    ph: &[Vec<usize>; 4],
+    split: f64,
+    g: f64,
+) -> Vec<OnFlight> {
+    let mut out = Vec::new();
+    for (k, frames) in ph.iter().enumerate() {
+        if fits[k].axes.iter().any(|a| a.is_none()) {
+            continue;
+        }
+        for &i in frames {
+            let Some(f) = obs.get(i) else { continue };
+            let (p, _) = kinematics::pos_vel(&fits[k], f.time_s - split, g);
+            for (vi, view) in views.iter().enumerate() {
+                if f.spheres[k % 2].get(vi).is_some_and(Option::is_some) {
+                    out.push(OnFlight {
+                        phase: k,
+                        frame: i,
+                        view: vi,
+                        at_mm: p,
+                        at_px: view.project(&p),
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
 /// Markers lifted again about the sphere's centre on its fitted trajectory instead of the
 /// frame's own circle fit: the trajectory, fitted over every frame of the phase, is several
 /// times more precise than one frame's circle, and an error of the centre moves every marker of
@@ -257,29 +307,20 @@ pub(super) fn relift_on_trajectories(
     radii: [f64; 2],
 ) -> Vec<FrameObs> {
     let mut out = obs.to_vec();
-    for (k, frames) in ph.iter().enumerate() {
-        let s = k % 2;
-        if fits[k].axes.iter().any(|a| a.is_none()) {
+    for q in on_flights(obs, views, fits, ph, split, g) {
+        let (s, view) = (q.phase % 2, &views[q.view]);
+        let Some(m) = out[q.frame].spheres[s][q.view].as_mut() else {
+            continue;
+        };
+        let c = q.at_px;
+        if (c[0] - m.centre_px[0]).hypot(c[1] - m.centre_px[1]) > 0.3 {
             continue;
         }
-        for &i in frames {
-            let Some(f) = out.get_mut(i) else { continue };
-            let (p, _) = kinematics::pos_vel(&fits[k], f.time_s - split, g);
-            for (vi, view) in views.iter().enumerate() {
-                let Some(m) = f.spheres[s][vi].as_mut() else {
-                    continue;
-                };
-                let c = view.project(&p);
-                if (c[0] - m.centre_px[0]).hypot(c[1] - m.centre_px[1]) > 0.3 {
-                    continue;
-                }
-                m.markers = m
-                    .markers
-                    .iter()
-                    .filter_map(|mk| markers::lift_at(view, mk.centre_px, c, radii[s], &p))
-                    .collect();
-            }
-        }
+        m.markers = m
+            .markers
+            .iter()
+            .filter_map(|mk| markers::lift_at(view, mk.centre_px, c, radii[s], &q.at_mm))
+            .collect();
     }
     out
 }

@@ -359,6 +359,18 @@ fn with_calibrate(dir: &Path, frames: &Path) -> Result<WithCalibrate, String> {
 /// The comparison over every recording (a folder holding `truth.json`) under `dir`.
 /// `saved_as`: how each recording's frames are changed first (`saved_as`; none: as rendered),
 /// written to a temporary folder that is removed afterwards.
+/// Of errors over their σ (`zs`): the share within ±1σ, %, NaN for none; how many lie beyond
+/// 3σ and beyond 5σ.
+fn coverage(zs: &[f64]) -> (f64, usize, usize) {
+    let within = |k: f64| zs.iter().filter(|z| z.abs() <= k).count();
+    let share = if zs.is_empty() {
+        f64::NAN
+    } else {
+        100.0 * within(1.0) as f64 / zs.len() as f64
+    };
+    (share, zs.len() - within(3.0), zs.len() - within(5.0))
+}
+
 pub fn validation(dir: &Path, saved_as: &[SavedAs]) -> Result<String, String> {
     let mut sessions: Vec<_> = std::fs::read_dir(dir)
         .map_err(|e| format!("{}: {e}", dir.display()))?
@@ -522,30 +534,17 @@ pub fn validation(dir: &Path, saved_as: &[SavedAs]) -> Result<String, String> {
             }
         }
     }
-    let within = |zs: &[f64], k: f64| zs.iter().filter(|z| z.abs() <= k).count();
+    let (within1, beyond3, beyond5) = coverage(&calibrated_components);
     let _ = writeln!(
         out,
-        "with those maps, of {} velocity and spin components with a σ: {:.0} % within ±1σ, {} beyond 3σ, {} beyond 5σ",
+        "with those maps, of {} velocity and spin components with a σ: {within1:.0} % within ±1σ, {beyond3} beyond 3σ, {beyond5} beyond 5σ",
         calibrated_components.len(),
-        if calibrated_components.is_empty() {
-            f64::NAN
-        } else {
-            100.0 * within(&calibrated_components, 1.0) as f64 / calibrated_components.len() as f64
-        },
-        calibrated_components.len() - within(&calibrated_components, 3.0),
-        calibrated_components.len() - within(&calibrated_components, 5.0),
     );
+    let (within1, beyond3, beyond5) = coverage(&centre_z);
     let _ = writeln!(
         out,
-        "centres' σ, every measured centre and image axis ({} values): {:.1} % within ±1σ (68.3 % if honest), {} beyond 3σ, {} beyond 5σ",
+        "centres' σ, every measured centre and image axis ({} values): {within1:.1} % within ±1σ (68.3 % if honest), {beyond3} beyond 3σ, {beyond5} beyond 5σ",
         centre_z.len(),
-        if centre_z.is_empty() {
-            f64::NAN
-        } else {
-            100.0 * within(&centre_z, 1.0) as f64 / centre_z.len() as f64
-        },
-        centre_z.len() - within(&centre_z, 3.0),
-        centre_z.len() - within(&centre_z, 5.0),
     );
     let analysed = rows.iter().filter(|r| r.outcome.is_ok()).count();
     let covered = all_z.iter().filter(|z| z.abs() <= 1.0).count();

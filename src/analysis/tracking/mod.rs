@@ -53,6 +53,15 @@ pub struct Measurement {
     pub sigma_common_px: f64,
 }
 
+impl Measurement {
+    /// Each axis's σ without the part the sphere's centres in this view share
+    /// (`sigma_common_px`), px: what one frame's centre scatters by about its flight.
+    pub fn own_sigma_px(&self) -> [f64; 2] {
+        self.sigma_px
+            .map(|sd| (sd * sd - self.sigma_common_px.powi(2)).max(0.0).sqrt())
+    }
+}
+
 #[cfg(test)]
 impl Measurement {
     /// For tests: a whole disc 13.7 px across (hw-sim's default scale) at `centre_px`, σ
