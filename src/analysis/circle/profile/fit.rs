@@ -32,6 +32,10 @@ const EDGE_WIDTH_STARTS_PX: [f64; 2] = [EDGE_WIDTH_PX.0, 0.5];
 /// takes c = 2.385σ: the usual choice, 95 % as efficient as least squares on Gaussian noise.
 const CAUCHY_SCALE: f64 = 2.385;
 
+/// The most grey-level terms `fit_grey_levels`'s linear start solves for: the background and,
+/// per disc, a, b and the harmonic (a₁, a₂).
+const LIN_TERMS_MAX: usize = 1 + 4 * 2;
+
 /// How two discs' model terms combine (`fit_grey_levels`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum Layering {
@@ -125,25 +129,39 @@ where
             }))
             .collect();
         let m = lin_index.len();
+        if m > LIN_TERMS_MAX {
+            return None;
+        }
         // (residual sum of squares, edge width, the linear terms)
         let mut best: Option<(f64, f64, nalgebra::DVector<f64>)> = None;
         for s in EDGE_WIDTH_STARTS_PX {
             for k in 0..N {
                 p[1 + DISC_PARAMS * k + 3] = s;
             }
-            let mut a = nalgebra::DMatrix::<f64>::zeros(m, m);
-            let mut y = nalgebra::DVector::<f64>::zeros(m);
+            // Sums held in fixed arrays (at most `LIN_TERMS_MAX` terms): a row allocated per
+            // pixel was a heap allocation on the hot path (two passes over every ring).
+            let mut a = [[0.0; LIN_TERMS_MAX]; LIN_TERMS_MAX];
+            let mut y = [0.0; LIN_TERMS_MAX];
             let mut yy = 0.0;
             for q in pixels {
                 let (model, j) = eval(&p, q, false);
-                let row = nalgebra::DVector::from_iterator(m, lin_index.iter().map(|&i| j[i]));
+                let mut row = [0.0; LIN_TERMS_MAX];
+                for (r, &i) in row.iter_mut().zip(&lin_index) {
+                    *r = j[i];
+                }
                 // The part of the model these terms do not carry (what a disc hides).
                 let rest = model - lin_index.iter().map(|&i| j[i] * p[i]).sum::<f64>();
-                a += &row * row.transpose();
-                y += &row * (q.grey - rest);
+                for (c, &rc) in row.iter().enumerate().take(m) {
+                    for (r, &rr) in row.iter().enumerate().take(m) {
+                        a[r][c] += rr * rc;
+                    }
+                    y[c] += rc * (q.grey - rest);
+                }
                 yy += (q.grey - rest).powi(2);
             }
             crate::analysis::stages::count_model_samples(pixels.len());
+            let a = nalgebra::DMatrix::from_fn(m, m, |r, c| a[r][c]);
+            let y = nalgebra::DVector::from_fn(m, |r, _| y[r]);
             let Some(lin) = a.lu().solve(&y) else {
                 continue;
             };
