@@ -395,3 +395,31 @@ fn the_stills_noise_is_the_quantiles() {
         "the still scatters by {sd:.3} grey levels; ground_noise says {said:.3}"
     );
 }
+
+/// `order_stats` gives the elements a full sort puts at the ranks, whether the values are
+/// whole grey levels (counted) or not (selected), repeated ranks and ties included.
+#[test]
+fn order_statistics_counted_or_selected_are_the_sorted_ones() {
+    // A small generator of its own (no dependency): whole levels with many ties, and the same
+    // less a fraction (not whole, so selected), and some out of 0–255.
+    let mut state = 12345u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 33) as u32
+    };
+    let whole: Vec<f32> = (0..5000).map(|_| (next() % 256) as f32).collect();
+    let fractional: Vec<f32> = whole.iter().map(|&x| x - 0.37).collect();
+    let wide: Vec<f32> = whole.iter().map(|&x| 4.0 * x - 300.0).collect();
+    for vals in [whole, fractional, wide] {
+        let mut sorted = vals.clone();
+        sorted.sort_by(f32::total_cmp);
+        let n = vals.len();
+        for ranks in [[0, n / 2, n - 1], [15, 2500, 4985], [2500; 3], [7, 7, 4999]] {
+            let mut v = vals.clone();
+            let got = order_stats(&mut v, ranks);
+            assert_eq!(got, ranks.map(|r| sorted[r]), "ranks {ranks:?}");
+        }
+    }
+}
