@@ -290,10 +290,10 @@ pub fn edge_points(
                     let f = (pv - level) / (pv - val);
                     let re = pr + f * (r - pr);
                     // The profile just past the crossing, read once for both checks below.
-                    let mut past = [None; PAST_SAMPLES];
-                    for (j, w) in past.iter_mut().enumerate() {
-                        *w = at(r + j as f64 * step);
-                    }
+                    // (Built in place: an array filled with None first was a call to memset
+                    // at every crossing, 2.6 % of a recording's analysis.)
+                    let past: [Option<f64>; PAST_SAMPLES] =
+                        std::array::from_fn(|j| at(r + j as f64 * step));
                     let rises_again = past[1..=8].iter().any(|w| w.is_some_and(|w| w >= level));
                     let limb = if rises_again || ray.dark {
                         Some(re)
@@ -405,7 +405,13 @@ pub const NEIGHBOUR_MARGIN_PX: f64 = 3.0;
 /// Whether point `p` lies within `NEIGHBOUR_MARGIN_PX` of the `other` sphere's disc (centre,
 /// radius, px): there the ground is not the ground.
 fn by_the_other(p: [f64; 2], other: Option<([f64; 2], f64)>) -> bool {
-    other.is_some_and(|(oc, or)| (p[0] - oc[0]).hypot(p[1] - oc[1]) <= or + NEIGHBOUR_MARGIN_PX)
+    // (Squared distances: libm's hypot, called for every shadow reading of every ray, was
+    // 1.3 % of a recording's analysis.)
+    other.is_some_and(|(oc, or)| {
+        let (du, dv) = (p[0] - oc[0], p[1] - oc[1]);
+        let reach = (or + NEIGHBOUR_MARGIN_PX).max(0.0);
+        du * du + dv * dv <= reach * reach
+    })
 }
 
 /// How many of the ground's noise σ a profile must sink below the ground beyond its crossing
