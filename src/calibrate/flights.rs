@@ -7,23 +7,66 @@ use super::sigma::scatter_ratio;
 use super::Fitted;
 use crate::analysis::geometry::View;
 use crate::analysis::geometry::V3;
-use crate::analysis::tracking::FrameObs;
+use crate::analysis::tracking::{FrameObs, Measurement};
 use nalgebra::{DMatrix, DVector};
 
+/// The views `flights` reads: the direct one's index and the image axis world x runs along in
+/// it (`provisional::x_index`), and the mirror's, where there is one.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct FlightViews {
+    pub(super) direct: (usize, usize),
+    pub(super) mirror: Option<(usize, usize)>,
+}
+
+/// Frames with both spheres measured in both views, at least, for `flights` to split where
+/// their separation seen by both views is least; fewer, and the direct view's alone decides.
+const SPLIT_FRAMES_BOTH_VIEWS: usize = 4;
+
+/// The frame the flights split at: where spheres a and b are closest. Seen by both views
+/// (`SPLIT_FRAMES_BOTH_VIEWS` frames or more with both spheres in each), their separation is
+/// taken as the direct view's (x, y) and the mirror's (x, z) put together, the x both share
+/// counted once (the mean of its squares in the two images); else the direct view's alone.
+/// Why: spheres that part along the direct camera's line of sight overlap in its image for
+/// the rest of the recording, a few pixels apart where it measures them whole; split there,
+/// 5–14 frames after the impact, the flights before it ran through the impact and calibrate
+/// wrote a direct view rolled by 72° (a render of the lab's v03 seen from 542 mm).
+fn split_frame(obs: &[FrameObs], views: FlightViews) -> Option<usize> {
+    let pair = |i: usize, v: usize| {
+        let c = |s: usize| obs[i].spheres[s].get(v)?.as_ref().map(|m| m.centre_px);
+        let (a, b) = (c(0)?, c(1)?);
+        Some([a[0] - b[0], a[1] - b[1]])
+    };
+    let (di, kd) = views.direct;
+    let both = |i: usize| {
+        let (mi, km) = views.mirror?;
+        let (d, m) = (pair(i, di)?, pair(i, mi)?);
+        let sq = |p: [f64; 2]| p[0] * p[0] + p[1] * p[1];
+        Some(sq(d) + sq(m) - 0.5 * (d[kd] * d[kd] + m[km] * m[km]))
+    };
+    let closest = |sep: &dyn Fn(usize) -> Option<f64>| {
+        (0..obs.len())
+            .filter_map(|i| Some((i, sep(i)?)))
+            .min_by(|x, y| x.1.total_cmp(&y.1))
+            .map(|(i, _)| i)
+    };
+    if (0..obs.len()).filter(|&i| both(i).is_some()).count() >= SPLIT_FRAMES_BOTH_VIEWS {
+        return closest(&both);
+    }
+    closest(&|i| pair(i, di).map(|d| d[0] * d[0] + d[1] * d[1]))
+}
+
 /// The flights in the direct view, in its image alone: split at the frame where a and b are
-/// closest, then for each sphere and side a parabola per image coordinate seeded on the 8
-/// frames nearest the split and grown outwards while each next frame lies within 5σ of it (a
-/// sphere still rolling in its tube leaves the parabola). Returns the split frame and the frames
-/// of [a before, b before, a after, b after].
-pub(super) fn flights(obs: &[FrameObs], di: usize) -> Result<(usize, [Vec<usize>; 4]), String> {
+/// closest (`split_frame`), then for each sphere and side a parabola per image coordinate
+/// seeded on the 8 frames nearest the split and grown outwards while each next frame lies
+/// within 5σ of it (a sphere still rolling in its tube leaves the parabola). Returns the split
+/// frame and the frames of [a before, b before, a after, b after].
+pub(super) fn flights(
+    obs: &[FrameObs],
+    views: FlightViews,
+) -> Result<(usize, [Vec<usize>; 4]), String> {
+    let di = views.direct.0;
     let centre = |i: usize, s: usize| obs[i].spheres[s][di].as_ref().map(|m| m.centre_px);
-    let split = (0..obs.len())
-        .filter_map(|i| {
-            let (a, b) = (centre(i, 0)?, centre(i, 1)?);
-            Some((i, (a[0] - b[0]).hypot(a[1] - b[1])))
-        })
-        .min_by(|x, y| x.1.total_cmp(&y.1))
-        .map(|(i, _)| i)
+    let split = split_frame(obs, views)
         .ok_or("spheres a and b are never both measured in the direct view")?;
     const SEED: usize = 8;
     let mut out: [Vec<usize>; 4] = Default::default();
@@ -135,12 +178,26 @@ pub(super) const EDGE_SYSTEMATIC_PX: f64 = 0.03;
 /// moves its half-level contour in by σ_b²/2R, and the disc's model follows that only in
 /// part; on hw-sim's defocused looks the diameter came out 0.5–2.6 % small at σ_b 1–1.5 px
 /// (R ≈ 7 px: σ_b²/R is 2–5 %), on a render blurred by 0.5 px 0.6 % large.
+///
+/// Discs the grey-level model fitted (a finite edge width) are taken alone where there are
+/// three or more: a disc fitted on its edge points (where the model's fit failed) is only the
+/// model's start, and its edge is where the profile crosses a level, not where the disc ends.
+/// Why: on a render lit along the axis over a ground brighter than the spheres' limbs, with
+/// markers at the rim, sphere a's direct discs all fell back to edge points, 11.1–11.5 px
+/// across for 12.5; the median of both spheres' put the scale 8 % low at a σ of 1.2 %.
 pub(super) fn diameter_scale(obs: &[FrameObs], vi: usize, diam_mm: [f64; 2]) -> Option<Fitted> {
+    let measured = |m: &Measurement| m.diameter_px.is_finite() && m.diameter_px > 0.0;
+    let modelled = obs
+        .iter()
+        .flat_map(|f| (0..2).filter_map(move |s| f.spheres[s][vi].as_ref()))
+        .filter(|m| measured(m) && m.edge_width_px.is_finite())
+        .count();
+    let modelled_only = modelled >= 3;
     let discs = || {
         obs.iter().flat_map(move |f| {
             (0..2).filter_map(move |s| {
                 let m = f.spheres[s][vi].as_ref()?;
-                (m.diameter_px.is_finite() && m.diameter_px > 0.0).then_some((s, m))
+                (measured(m) && (!modelled_only || m.edge_width_px.is_finite())).then_some((s, m))
             })
         })
     };
@@ -241,25 +298,28 @@ pub(super) fn free_fall(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::tracking::Measurement;
+
+    /// A disc measured at `centre_px`, `diameter_px` across, fitted with edge width
+    /// `edge_width_px` (NaN: on edge points).
+    fn disc(centre_px: [f64; 2], diameter_px: f64, edge_width_px: f64) -> Option<Measurement> {
+        Some(Measurement {
+            centre_px,
+            blob_centroid_px: centre_px,
+            sigma_px: [0.02; 2],
+            diameter_px,
+            edge_width_px,
+            markers: Vec::new(),
+            hidden_in_part: None,
+            radius_stray_px: 0.0,
+            sigma_common_px: 0.0,
+        })
+    }
 
     /// 30 frames of both spheres seen whole in one view, diameters 13.7 px ± 0.02 px.
     fn discs(edge_width_px: f64) -> Vec<FrameObs> {
         (0..30)
             .map(|k| {
-                let m = |d: f64| {
-                    Some(Measurement {
-                        centre_px: [50.0, 40.0],
-                        blob_centroid_px: [50.0, 40.0],
-                        sigma_px: [0.02; 2],
-                        diameter_px: d,
-                        edge_width_px,
-                        markers: Vec::new(),
-                        hidden_in_part: None,
-                        radius_stray_px: 0.0,
-                        sigma_common_px: 0.0,
-                    })
-                };
+                let m = |d: f64| disc([50.0, 40.0], d, edge_width_px);
                 let d = 13.7 + 0.02 * ((k % 5) as f64 - 2.0);
                 FrameObs {
                     index: k,
@@ -289,5 +349,87 @@ mod tests {
         assert!(rel(typed_in) >= floor, "{}", rel(typed_in));
         // s = 0.6: σ_b = 1.09 px, σ_b²/R = 0.17 px, 2.5 % of R.
         assert!(rel(blurred) > 0.02, "blurred: {}", rel(blurred));
+    }
+
+    /// Spheres that part along the direct camera's line of sight after they meet: in its image
+    /// they stay a few pixels apart for the rest of the recording (measured whole in some
+    /// frames), closer than in any frame before the impact; the mirror sees them part. The
+    /// flights split at the impact, not in those frames.
+    #[test]
+    fn the_flights_split_where_both_views_see_the_spheres_closest() {
+        let impact = 20;
+        let obs: Vec<FrameObs> = (0..40)
+            .map(|k| {
+                let t = k as f64 - impact as f64;
+                // Before: closing along x at 2 px a frame, 14 px apart at the last frame
+                // before contact; after: 8 px apart in the direct image, parting along z.
+                let (dx, dz) = if t < 0.0 {
+                    (12.0 - 2.0 * t, 0.0)
+                } else {
+                    (8.0, 12.0 + 3.0 * t)
+                };
+                let (cd, cm) = ([100.0, 40.0], [100.0, 140.0]);
+                let direct = [
+                    disc([cd[0] - dx / 2.0, cd[1]], 13.0, 0.05),
+                    disc([cd[0] + dx / 2.0, cd[1]], 13.0, 0.05),
+                ];
+                let mirror = [
+                    disc([cm[0] - dx / 2.0, cm[1] - dz / 2.0], 13.0, 0.05),
+                    disc([cm[0] + dx / 2.0, cm[1] + dz / 2.0], 13.0, 0.05),
+                ];
+                // The spheres touch over the impact's frames and are not measured whole; after
+                // it the direct view measures them only now and then, overlapping.
+                let touching = (impact - 1..=impact + 1).contains(&k);
+                let direct_seen = !touching && (t < 0.0 || k % 5 == 0);
+                let [da, db] = direct;
+                let [ma, mb] = mirror;
+                let keep = |m: Option<Measurement>, seen: bool| if seen { m } else { None };
+                FrameObs {
+                    index: k as u64,
+                    frame_id: k as u64,
+                    time_s: k as f64 / 1000.0,
+                    spheres: [
+                        vec![keep(da, direct_seen), keep(ma, !touching)],
+                        vec![keep(db, direct_seen), keep(mb, !touching)],
+                    ],
+                    position_mm: [None, None],
+                }
+            })
+            .collect();
+        let both = FlightViews {
+            direct: (0, 0),
+            mirror: Some((1, 0)),
+        };
+        let split = split_frame(&obs, both).unwrap();
+        assert!(split.abs_diff(impact) <= 2, "split at frame {split}");
+        // The direct view alone splits after the impact (the test's premise).
+        let direct_only = FlightViews {
+            direct: (0, 0),
+            mirror: None,
+        };
+        let alone = split_frame(&obs, direct_only).unwrap();
+        assert!(alone > impact + 2, "the direct view alone split at {alone}");
+    }
+
+    /// Discs fitted on their edge points (the model's fit failed), small as such discs can
+    /// be, do not set the scale where the model fitted others.
+    #[test]
+    fn the_diameters_scale_comes_from_discs_the_model_fitted() {
+        let mut obs = discs(0.05);
+        for (k, f) in obs.iter_mut().enumerate() {
+            // Sphere a on edge points, 10 % small, in every frame, and b in every other one:
+            // most of the discs.
+            f.spheres[0][0] = disc([50.0, 40.0], 12.33, f64::NAN);
+            if k % 2 == 0 {
+                f.spheres[1][0] = disc([50.0, 40.0], 12.34, f64::NAN);
+            }
+        }
+        let scale = diameter_scale(&obs, 0, [6.35, 6.35]).unwrap();
+        let truth = 13.71 / 6.35;
+        assert!(
+            (scale.value / truth - 1.0).abs() < 0.005,
+            "{} px/mm against {truth}",
+            scale.value
+        );
     }
 }

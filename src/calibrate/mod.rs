@@ -39,7 +39,7 @@ use crate::config::Config;
 use bundle::{fit_bundle, LensFrame};
 use flights::{diameter_scale, flights, free_fall, FreeFall};
 use maps::{direct_matrix, distance, mirror_matrix, view_geometry, x_sign};
-use provisional::{first_flights, line_fit, x_index, MirrorAxes};
+use provisional::{first_flights, flight_views, line_fit, x_index, MirrorAxes};
 pub use sigma::SCALES_AGREE_SIGMA;
 use sigma::{combine_scales, degrees_known, percent_known, widened_by};
 
@@ -311,10 +311,11 @@ pub fn calibrate(
                 cause,
             })?;
         let o = whole_discs_only(o);
-        let (_, ph) = flights(&o, di).map_err(|message| CalibrateError::Data {
-            source_name: oname,
-            message,
-        })?;
+        let (_, ph) =
+            flights(&o, flight_views(&views, di)).map_err(|message| CalibrateError::Data {
+                source_name: oname,
+                message,
+            })?;
         let offset = obs.len();
         phases.extend(
             ph.into_iter()

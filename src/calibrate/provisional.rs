@@ -3,10 +3,10 @@
 //! the spheres are labelled alike in both views before anything is fitted; and the first
 //! recording measured under the first such geometry that shows flights (`first_flights`).
 
-use super::flights::flights;
+use super::flights::{flights, FlightViews};
 use super::whole_discs_only;
 use crate::analysis::calibration::fit_line;
-use crate::analysis::geometry::View;
+use crate::analysis::geometry::{View, ViewKind};
 use crate::analysis::tracking::FrameObs;
 use crate::analysis::BlobSurvey;
 use crate::analysis::{self, FrameSource};
@@ -76,6 +76,18 @@ fn shorthand_x(v: &ViewGeometry) -> Option<(usize, f64)> {
 /// a camera turned on its side (the views side by side).
 pub(super) fn x_index(view: &View) -> usize {
     usize::from(view.v_axis.x.abs() > view.u_axis.x.abs())
+}
+
+/// The views `flights` reads, from the provisional ones: the direct view at `di` and the
+/// mirror's, each with the image axis x runs along.
+pub(super) fn flight_views(views: &[View], di: usize) -> FlightViews {
+    FlightViews {
+        direct: (di, x_index(&views[di])),
+        mirror: views
+            .iter()
+            .position(|v| v.kind == ViewKind::Mirror)
+            .map(|mi| (mi, x_index(&views[mi]))),
+    }
 }
 
 /// How the mirror view images the world, from its provisional map: the image axis world x runs
@@ -185,7 +197,7 @@ pub(super) fn first_flights(
             .map_err(|e| e.to_string())
             .map(|(views, obs)| (views, whole_discs_only(obs)))
             .and_then(|(views, obs)| {
-                let (split, phases) = flights(&obs, di)?;
+                let (split, phases) = flights(&obs, flight_views(&views, di))?;
                 Ok((views, obs, split, phases))
             });
         match attempt {
