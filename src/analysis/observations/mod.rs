@@ -288,6 +288,14 @@ pub(super) fn observations_once(
     let split = impact_split(&placed.obs, &placed.views, &set, &info.name)?;
     // Final fits referenced at the impact time, so p0 and v are the state at impact.
     let fits = set.fits_at(&placed.obs, &placed.views, split);
+    // Each sphere's flights meet where it was at the impact, or nothing after it is that
+    // sphere's: no result rather than one a name or a view got wrong.
+    names_through_impact::flights_meet(&fits, set.g, set.contact_mm).map_err(|message| {
+        AnalysisError::NoImpact {
+            source_name: info.name.clone(),
+            message,
+        }
+    })?;
     let mut warnings = input_warnings;
     warnings.append(&mut placed.notes);
     let bodies = bodies(&fits, &set, &mut warnings);
