@@ -4,7 +4,9 @@
 //! few frames at the impact (a contact normal out of that view's plane) and pass each other
 //! meanwhile, it can come out of the overlap with the names the wrong way round (hw-sim seeds
 //! 110 and 3124 of the varied looks: both views swapped, "no impact found"). Here the names
-//! after the impact are turned round in a view where that makes the tracks meet far better.
+//! after the impact are turned round in a view where that makes the tracks meet far better;
+//! and once the four phases are fitted in the world, each sphere's flights must meet at the
+//! impact, or there is no result (`flights_meet`).
 
 use super::geometry::View;
 use super::kinematics::{self, Fits};
@@ -176,7 +178,7 @@ pub(super) fn flights_meet(fits: &Fits, g: f64, contact_mm: f64) -> Result<(), S
         return Ok(());
     }
     Err(format!(
-        "each sphere's flights before and after the impact must meet there, but a's are {:.1} mm apart and b's {:.1} mm (at most {:.1} mm): frames after the impact carry the other sphere's name in at least one view",
+        "each sphere's flights before and after the impact must meet there, but a's are {:.1} mm apart and b's {:.1} mm (at most {:.1} mm): most likely frames after the impact carry the other sphere's name in a view",
         misses[0],
         misses[1],
         0.5 * contact_mm
