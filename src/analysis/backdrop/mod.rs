@@ -297,30 +297,41 @@ impl Backdrop {
                     }
                 }
             }
+            let lit = |s: f32| match light {
+                Some(l) => median + (l.gain * (s - median) as f64) as f32,
+                None => s,
+            };
+            // Row by row, over slices (every pixel of every view of every frame, both
+            // passes: per-pixel indexing was a few per cent of a recording's analysis).
             for v in y0..y1 {
-                for u in x0..x1 {
-                    // Overexposed: marked before the level is moved (bright spheres only; in a
-                    // backlit view what saturates is the ground).
-                    if !vb.dark_spheres && img.data[v * w + u] >= SATURATED_GREY {
-                        if img.unmeasured.is_empty() {
-                            img.unmeasured.resize(img.width * img.height, false);
-                        }
-                        img.unmeasured[v * w + u] = true;
+                let row_at = v * w + x0;
+                // Overexposed: marked before the level is moved (bright spheres only; in a
+                // backlit view what saturates is the ground).
+                if !vb.dark_spheres
+                    && img.data[row_at..row_at + rw]
+                        .iter()
+                        .any(|&p| p >= SATURATED_GREY)
+                {
+                    if img.unmeasured.is_empty() {
+                        img.unmeasured.resize(img.width * img.height, false);
                     }
-                    let p = &mut img.data[v * w + u];
-                    let lit = |s: f32| match light {
-                        Some(l) => median + (l.gain * (s - median) as f64) as f32,
-                        None => s,
-                    };
-                    let ground = vb
-                        .still
-                        .as_ref()
-                        .map(|s| lit(s[(v - y0) * rw + (u - x0)]))
-                        .unwrap_or(if vb.dark_spheres {
-                            255.0 - vb.level
-                        } else {
-                            vb.level
-                        });
+                    let (data, unmeasured) = (&img.data, &mut img.unmeasured);
+                    for (m, &p) in unmeasured[row_at..row_at + rw]
+                        .iter_mut()
+                        .zip(&data[row_at..row_at + rw])
+                    {
+                        if p >= SATURATED_GREY {
+                            *m = true;
+                        }
+                    }
+                }
+                let row = &mut img.data[row_at..row_at + rw];
+                let still = vb
+                    .still
+                    .as_ref()
+                    .map(|s| &s[(v - y0) * rw..(v - y0 + 1) * rw]);
+                for (k, p) in row.iter_mut().enumerate() {
+                    let ground = still.map(|s| lit(s[k])).unwrap_or(median);
                     *p = if vb.dark_spheres {
                         vb.level + (ground - *p)
                     } else {
