@@ -383,7 +383,7 @@ fn stuck_pixels(frames: &[GreyImage], rect: [usize; 4]) -> Vec<usize> {
     for f in frames {
         for v in y0..y1 {
             // (Every sample has the recording's size; a frame that had not is passed over.)
-            let Some(row) = f.data.get(v * f.width + x0..v * f.width + x1) else {
+            let Some(row) = row_of(f, v, x0, x1) else {
                 continue;
             };
             let at = (v - y0) * rw;
@@ -521,7 +521,7 @@ fn votes_dark(frames: &[GreyImage], rect: [usize; 4], ground: Option<&[f32]>) ->
         steps.clear();
         // Row by row, each pixel read once and its step to the next taken from the row.
         for v in rect[1]..rect[3] {
-            let Some(row) = f.data.get(v * f.width + rect[0]..v * f.width + rect[2]) else {
+            let Some(row) = row_of(f, v, rect[0], rect[2]) else {
                 continue;
             };
             let first = vals.len();
