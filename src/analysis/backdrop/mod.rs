@@ -9,7 +9,9 @@
 //! is what is there when no sphere is: a sphere covers a pixel for a short part of a flight, so
 //! a quantile on the ground's side of the spheres (the 20th percentile for bright spheres, the
 //! 80th for dark ones) leaves them out as long as no pixel is covered in more than 80 % of the
-//! sampled frames. With fewer than `MIN_FRAMES` frames there is no backdrop, only the polarity.
+//! sampled frames. Spheres both brighter and darker than their ground (lit from the side over a
+//! grey ground) have no side the ground is on: there the median, which leaves them out while no
+//! pixel is covered in half the samples (`polarity`). With fewer than `MIN_FRAMES` frames there is no backdrop, only the polarity.
 //! Where the lamps flicker, each frame's view is matched to the still first (`gain`). A pixel
 //! that shows one level in every sample while its neighbours change is a defective one, hot or
 //! dead (`stuck_pixels`): marked unmeasured in every frame, as an overexposed one is.
@@ -36,20 +38,37 @@ const GROUND_QUANTILE: f64 = 0.2;
 /// and a noise-free render's ground (range 0) never counts.
 const STUCK_NEIGHBOUR_RANGE: f32 = 3.0;
 
-/// Φ⁻¹(1 − `GROUND_QUANTILE`): the standard normal's quantile the still is taken at, in σ.
-const GROUND_QUANTILE_Z: f64 = 0.8416;
-
 /// The noise σ a still keeps of its frames' (`GreyImage::ground_noise`): the quantile q of k
 /// samples of noise σ scatters by √(q(1 − q)/k)/φ(Φ⁻¹(q))·σ (the order statistic's asymptotic
-/// spread; 0.26 at 31 samples). Why not measured on the still itself: its levels are the
-/// frames', whole grey levels, and its pixel-to-pixel differences a level or two, which a
-/// median quantises to 0 or 1 — twice the true figure at σ = 2.
-fn still_noise_ratio(samples: usize) -> f64 {
-    let q = GROUND_QUANTILE;
-    let density =
-        (-0.5 * GROUND_QUANTILE_Z * GROUND_QUANTILE_Z).exp() / std::f64::consts::TAU.sqrt();
-    (q * (1.0 - q) / samples.max(1) as f64).sqrt() / density
+/// spread; 0.26 at 31 samples for the 20th percentile, 0.23 for the median). Why not measured
+/// on the still itself: its levels are the frames', whole grey levels, and its pixel-to-pixel
+/// differences a level or two, which a median quantises to 0 or 1 — twice the true figure at
+/// σ = 2.
+fn still_noise_ratio(samples: usize, q: Quantile) -> f64 {
+    let density = (-0.5 * q.z * q.z).exp() / std::f64::consts::TAU.sqrt();
+    (q.q * (1.0 - q.q) / samples.max(1) as f64).sqrt() / density
 }
+
+/// A quantile the still is taken at, and Φ⁻¹ of it (or of its complement: the spread is the
+/// same), in σ.
+#[derive(Clone, Copy, Debug)]
+struct Quantile {
+    q: f64,
+    z: f64,
+}
+
+/// The still's quantile on the ground's side of bright spheres (dark ones: its complement);
+/// z = Φ⁻¹(1 − `GROUND_QUANTILE`).
+const GROUND: Quantile = Quantile {
+    q: GROUND_QUANTILE,
+    z: 0.8416,
+};
+
+/// The still's quantile where the spheres are both brighter and darker than the ground (a
+/// side-lit sphere over a grey ground: its lit side above, its shaded limb below): either
+/// side's quantile would take in the other side's part wherever a sphere covers a pixel in a
+/// fifth of the samples, so the median, which holds while no pixel is covered in half.
+const MEDIAN: Quantile = Quantile { q: 0.5, z: 0.0 };
 
 /// The frames' noise σ over a view, grey levels: the median absolute change of a pixel from
 /// one sampled frame to the next, over √2 (the spheres pass over a few of the pixels only);
@@ -144,14 +163,18 @@ impl Backdrop {
         // On the samples as recorded (the still below may bring them to one light).
         let stuck: Vec<Vec<usize>> = rects.iter().map(|&r| stuck_pixels(&frames, r)).collect();
         let mut out = Vec::with_capacity(views.len());
+        let mut quantiles = Vec::with_capacity(views.len());
         for ((view, &rect), stuck) in views.iter().zip(&rects).zip(stuck) {
-            let dark_spheres = dark_spheres(&frames, rect);
+            let polarity = polarity(&frames, rect);
+            let dark_spheres = polarity == Polarity::Dark;
+            let q = if polarity == Polarity::TwoSided {
+                MEDIAN
+            } else {
+                GROUND
+            };
+            quantiles.push(q);
             let still = (k >= MIN_FRAMES).then(|| {
-                let q = if dark_spheres {
-                    1.0 - GROUND_QUANTILE
-                } else {
-                    GROUND_QUANTILE
-                };
+                let q = if dark_spheres { 1.0 - q.q } else { q.q };
                 let idx = ((k - 1) as f64 * q).round() as usize;
                 let still = quantile(&frames, rect, idx);
                 // Under a flickering lamp the samples' light decides their order at every
@@ -231,11 +254,11 @@ impl Backdrop {
             .map(|vb| vb.rect)
             .collect();
         let ground_noise = if ground.is_some() {
-            let frames_noise = rects
+            rects
                 .iter()
-                .map(|&r| frames_noise(&frames, r))
-                .fold(0.0, f64::max);
-            (still_noise_ratio(k) * frames_noise) as f32
+                .zip(&quantiles)
+                .map(|(&r, &q)| still_noise_ratio(k, q) * frames_noise(&frames, r))
+                .fold(0.0, f64::max) as f32
         } else {
             0.0
         };
@@ -472,25 +495,52 @@ fn order_stats(vals: &mut [f32], ranks: [usize; 3]) -> [f32; 3] {
     out
 }
 
-/// Whether what differs from a view's ground is darker than it (`votes_dark`). A ground that
+/// Which way what moves in a view differs from its ground.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Polarity {
+    /// Brighter: the still is a low quantile.
+    Bright,
+    /// Darker (backlit): the view is inverted, the still a high quantile.
+    Dark,
+    /// Both, by amounts within a factor two of each other over the frames (a side-lit sphere
+    /// over a grey ground): the still is the median.
+    TwoSided,
+}
+
+/// Which way what differs from a view's ground differs from it (`votes_dark`). A ground that
 /// is not flat — vignetting, a gradient, clutter — has tails of its own, which on a bright
 /// ground reach as far as a sphere's (a grey ground of 104 vignetted by a fifth: its darkest
 /// 0.3 % 26 levels below its median, its brightest 12 above, in every frame without a sphere,
-/// and the view was turned over). So a view voted dark is voted again on each frame less the
-/// per-pixel median of the samples (the ground as it is: the spheres pass, it stays), where
-/// only what moves stands out, and the dark must outweigh the bright over all the frames.
-fn dark_spheres(frames: &[GreyImage], rect: [usize; 4]) -> bool {
-    if !votes_dark(frames, rect, None) {
-        return false;
-    }
+/// and the view was turned over). So each frame is voted again less the per-pixel median of the
+/// samples (the ground as it is: the spheres pass, it stays), where only what moves stands out:
+/// dark where both votes say so and the dark outweighs the bright twice over all the frames;
+/// two-sided where neither side outweighs the other twice (a sphere whose shaded limb is as far
+/// below a grey ground as its lit side is above); else bright. With fewer than `MIN_FRAMES`
+/// samples there is no median (nor a still): the frames as recorded decide.
+fn polarity(frames: &[GreyImage], rect: [usize; 4]) -> Polarity {
+    let raw_dark = votes(frames, rect, None).votes < 0;
     if frames.len() < MIN_FRAMES {
-        return true;
+        return if raw_dark {
+            Polarity::Dark
+        } else {
+            Polarity::Bright
+        };
     }
     let median = quantile(frames, rect, (frames.len() - 1) / 2);
-    votes_dark(frames, rect, Some(&median))
+    let moving = votes(frames, rect, Some(&median));
+    if raw_dark && moving.votes < 0 && moving.dark > 2.0 * moving.bright {
+        Polarity::Dark
+    } else if moving.bright > 2.0 * moving.dark {
+        Polarity::Bright
+    } else if moving.dark > 0.0 {
+        Polarity::TwoSided
+    } else {
+        // Nothing stood out in any frame (a view without spheres).
+        Polarity::Bright
+    }
 }
 
-/// What `votes_dark`'s frames said: the votes (each −1 dark, +1 bright), and the dark and the
+/// What `votes`'s frames said: the votes (each −1 dark, +1 bright), and the dark and the
 /// bright extremes summed over the frames where either stood out.
 struct Votes {
     votes: i32,
@@ -498,16 +548,16 @@ struct Votes {
     bright: f64,
 }
 
-/// Whether the sampled frames vote what differs from the view's ground darker than it: in
-/// each, the view's darkest 0.3 % against its brightest 0.3 %, each measured from the median;
-/// a frame votes only where one side stands out clearly (8× the noise) and is at least twice
-/// the other. The noise is measured between neighbouring pixels, which an uneven ground does
-/// not inflate. `ground`: subtracted from each frame first (the rect's pixels, row by row);
-/// then the dark extremes summed over the frames must also be twice the bright ones: a
-/// sphere lit from one side over a grey ground is as much darker as brighter than it, and
-/// its few frames that vote (half a disc in view at a border, its dark side first) do not
-/// speak for the view.
-fn votes_dark(frames: &[GreyImage], rect: [usize; 4], ground: Option<&[f32]>) -> bool {
+/// How the sampled frames vote on what differs from the view's ground: in each, the view's
+/// darkest 0.3 % against its brightest 0.3 %, each measured from the median; a frame votes only
+/// where one side stands out clearly (8× the noise) and is at least twice the other, and adds
+/// both extremes to the sums where either stands out. The noise is measured between
+/// neighbouring pixels, which an uneven ground does not inflate. `ground`: subtracted from each
+/// frame first (the rect's pixels, row by row). (A sphere lit from one side over a grey ground
+/// is as much darker as brighter than it, and its few frames that vote dark — half a disc in
+/// view at a border, its dark side first — do not speak for the view: `polarity` weighs the
+/// sums too.)
+fn votes(frames: &[GreyImage], rect: [usize; 4], ground: Option<&[f32]>) -> Votes {
     let mut tally = Votes {
         votes: 0,
         dark: 0.0,
@@ -558,10 +608,7 @@ fn votes_dark(frames: &[GreyImage], rect: [usize; 4], ground: Option<&[f32]>) ->
             tally.bright += bright;
         }
     }
-    match ground {
-        None => tally.votes < 0,
-        Some(_) => tally.votes < 0 && tally.dark > 2.0 * tally.bright,
-    }
+    tally
 }
 
 /// Each frame normalised by the backdrop as it is read (`source::Filtered`).

@@ -180,9 +180,12 @@ pub(super) struct BlobPlan {
 /// and the few edge points left may trace the bright part alone; spheres passing in front of a
 /// tube end went unmeasured for 20–120 frames of a recording (fits rejected for settling 2 px
 /// from the centroid they began at), and on a synthetic one a fit from the bright part settled
-/// 3.2 px towards the light with the right radius. Only where the prediction lies on the blob,
-/// the blob is not cut by the view's border, and the other sphere (by its prediction and its
-/// blob) is clear of the disc: two discs in one blob are not one disc.
+/// 3.2 px towards the light with the right radius. Also for a blob whose edge points are too
+/// few where the sphere has no track yet, from the blob's centroid: a side-lit sphere over a
+/// grey ground under a noise of 4 levels (an independent render drawn at random) gave too few
+/// edge points in every frame of one view, and so never a track. Only where the prediction
+/// lies on the blob, the blob is not cut by the view's border, and the other sphere (by its
+/// prediction and its blob) is clear of the disc: two discs in one blob are not one disc.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fit_from_track(
     img: &GreyImage,
@@ -199,7 +202,10 @@ pub(super) fn fit_from_track(
     if b.clipped || other_blob.is_some_and(|o| std::ptr::eq(o, b)) {
         return None;
     }
-    let p = predicted[s]?;
+    // No track yet (the sphere's first frames in this view): the blob's centroid, where the
+    // blob holds both sides of a disc whose shading crosses the ground's level
+    // (`detect::find_blobs`), is a start within a pixel or so.
+    let p = predicted[s].unwrap_or(b.centroid);
     let apart = radius[0] + radius[1] + 1.0;
     if dist(p, b.centroid) >= radius[s]
         || predicted[1 - s].is_some_and(|q| dist(p, q) < apart)
