@@ -400,8 +400,9 @@ fn the_stills_noise_is_the_quantiles() {
 /// whole grey levels (counted) or not (selected), repeated ranks and ties included.
 #[test]
 fn order_statistics_counted_or_selected_are_the_sorted_ones() {
-    // A small generator of its own (no dependency): whole levels with many ties, and the same
-    // less a fraction (not whole, so selected), and some out of 0–255.
+    // A small generator of its own (no dependency): whole levels with many ties; the same less
+    // 200 (whole and signed, as frames less a still: counted); less a fraction (not whole, so
+    // selected); and spread beyond −256–255 (selected), the range's two ends among them.
     let mut state = 12345u64;
     let mut next = || {
         state = state
@@ -411,8 +412,12 @@ fn order_statistics_counted_or_selected_are_the_sorted_ones() {
     };
     let whole: Vec<f32> = (0..5000).map(|_| (next() % 256) as f32).collect();
     let fractional: Vec<f32> = whole.iter().map(|&x| x - 0.37).collect();
-    let wide: Vec<f32> = whole.iter().map(|&x| 4.0 * x - 300.0).collect();
-    for vals in [whole, fractional, wide] {
+    let signed: Vec<f32> = whole.iter().map(|&x| x - 200.0).collect();
+    let mut wide: Vec<f32> = whole.iter().map(|&x| 4.0 * x - 300.0).collect();
+    wide[..3].copy_from_slice(&[-256.0, 255.0, -257.0]);
+    let mut ends = signed.clone();
+    ends[..2].copy_from_slice(&[-256.0, 255.0]);
+    for vals in [whole, signed, fractional, wide, ends] {
         let mut sorted = vals.clone();
         sorted.sort_by(f32::total_cmp);
         let n = vals.len();
