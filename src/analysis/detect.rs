@@ -86,10 +86,10 @@ const TWO_SIDED_MAX_DISC: f64 = 1.1;
 /// A sphere lit from the side over a ground as bright as its shaded limb is partly brighter and
 /// partly darker than the ground: its lit side a blob above the threshold, its limb one below
 /// the ground by as much, with a band between where its shading crosses the ground's level. A
-/// dark part joins the largest bright blob within half a radius (the band's width) where the
-/// two together are no more than a disc (so do the dots, dark inside a lit disc, which fill its
-/// blob); a dark part alone is never a sphere (a view whose spheres are darker than their
-/// ground is inverted before this: `backdrop`).
+/// dark part of a sphere's fragment's size or more (a limb; not a dot) joins the bright blob
+/// within half a radius (the band's width) where that blob is the only one of a fragment's size
+/// there and the two together are no more than a disc; a dark part alone is never a sphere (a
+/// view whose spheres are darker than their ground is inverted before this: `backdrop`).
 pub fn find_blobs(
     img: &GreyImage,
     view: &View,
@@ -177,23 +177,28 @@ pub fn find_blobs(
             parts.push(part);
         }
     }
-    // Each dark part (a shaded limb, a dot), largest first, joins the largest bright part
-    // within reach whose area, with the dark parts it holds already, leaves room for it. The
-    // largest, not the nearest: a fleck of noise or highlight beside a limb is no disc's lit
-    // side.
+    // Each dark part of a fragment's size or more (a shaded limb), largest first, joins the one
+    // bright part of a fragment's size within reach, where their areas together leave room.
+    // Not a dot: dark inside a lit disc, it only moved the grey-level fits' starts, and on
+    // hw-sim's grey-ground look that lost frames and put the worst centres 3–11 px off where
+    // they had been 0.1–0.9. Not where two bright parts are within reach: by the spheres' gap a
+    // limb may be either's. Nor to a fleck of noise or highlight: no disc's lit side.
     let reach = (0.5 * radius_px).max(2.0);
     let fragment = FRAGMENT_OF_DISC * disc_area;
     let (bright, mut dark): (Vec<Part>, Vec<Part>) = parts.into_iter().partition(|p| p.bright);
     let mut blobs: Vec<Part> = bright;
     dark.sort_by_key(|d| std::cmp::Reverse(d.area));
-    for d in &dark {
-        let largest = blobs
+    for d in dark.iter().filter(|d| d.area as f64 >= fragment) {
+        let mut near = blobs
             .iter()
             .enumerate()
-            .filter(|(_, b)| (b.area + d.area) as f64 <= TWO_SIDED_MAX_DISC * disc_area)
+            .filter(|(_, b)| b.area as f64 >= fragment)
             .filter(|(_, b)| b.within_reach(d, &pixels, reach))
-            .max_by_key(|(_, b)| b.area);
-        if let Some((i, _)) = largest {
+            .map(|(i, _)| i);
+        let (Some(i), None) = (near.next(), near.next()) else {
+            continue;
+        };
+        if (blobs[i].area + d.area) as f64 <= TWO_SIDED_MAX_DISC * disc_area {
             blobs[i].join(d);
         }
     }
