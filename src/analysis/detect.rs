@@ -318,6 +318,16 @@ pub(crate) mod tests {
         centres: &[[f64; 2]],
         shade: &dyn Fn(f64, f64) -> f64,
     ) -> GreyImage {
+        frame_each(ground, r, centres, &|_, x, y| shade(x, y))
+    }
+
+    /// `frame` with each disc's shading its own: `shade(k, x, y)` for the k-th of `centres`.
+    fn frame_each(
+        ground: f64,
+        r: f64,
+        centres: &[[f64; 2]],
+        shade: &dyn Fn(usize, f64, f64) -> f64,
+    ) -> GreyImage {
         let mut img = GreyImage::new();
         img.width = W;
         img.height = H;
@@ -330,9 +340,12 @@ pub(crate) mod tests {
                         u + ((j % 4) as f64 - 1.5) / 4.0,
                         v + ((j / 4) as f64 - 1.5) / 4.0,
                     );
-                    let inside = centres.iter().find(|c| (su - c[0]).hypot(sv - c[1]) < r);
+                    let inside = centres
+                        .iter()
+                        .enumerate()
+                        .find(|(_, c)| (su - c[0]).hypot(sv - c[1]) < r);
                     sum += match inside {
-                        Some(c) => shade(su - c[0], sv - c[1]),
+                        Some((k, c)) => shade(k, su - c[0], sv - c[1]),
                         None => ground,
                     };
                 }
@@ -402,6 +415,38 @@ pub(crate) mod tests {
         };
         let off = (b.centroid[0] - centre[0]).hypot(b.centroid[1] - centre[1]);
         assert!(off < 1.5, "blob {b:?} {off:.2} px from the centre");
+    }
+
+    /// Two side-lit spheres a pixel apart, the first one's shaded limb against the second one's
+    /// lit side, the second's paint brighter (a larger lit side): the limb is within reach of
+    /// both lit sides, joins neither, and does not drag the second sphere's blob towards the
+    /// first, as it did joined to the larger lit side within reach.
+    #[test]
+    fn a_limb_between_two_spheres_joins_neither() {
+        let r = 6.25;
+        let a = [100.3, 40.7];
+        let step = (2.0 * r + 1.0) * std::f64::consts::FRAC_1_SQRT_2;
+        let b = [a[0] + step, a[1] + step];
+        let lit = side_lit(r);
+        let img = frame_each(104.0, r, &[a, b], &|k, x, y| {
+            if k == 0 {
+                lit(x, y)
+            } else {
+                (1.4 * lit(x, y)).min(250.0)
+            }
+        });
+        let lv = levels(&img, &view());
+        let blobs = find_blobs(&img, &view(), &lv, r, 0.5);
+        let dist = |x: &Blob| (x.centroid[0] - b[0]).hypot(x.centroid[1] - b[1]);
+        let nearest_b = blobs
+            .iter()
+            .min_by(|p, q| dist(p).total_cmp(&dist(q)))
+            .expect("blobs");
+        assert!(
+            dist(nearest_b) < 1.5,
+            "the second sphere's blob {nearest_b:?} {:.2} px from its centre; blobs {blobs:?}",
+            dist(nearest_b)
+        );
     }
 
     /// A dark disc alone (a shadow on a backdrop, a dark thing passing) is not a sphere; beside
