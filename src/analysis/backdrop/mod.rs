@@ -11,7 +11,8 @@
 //! 80th for dark ones) leaves them out as long as no pixel is covered in more than 80 % of the
 //! sampled frames. Spheres both brighter and darker than their ground (lit from the side over a
 //! grey ground) have no side the ground is on: there the median, which leaves them out while no
-//! pixel is covered in half the samples (`polarity`). With fewer than `MIN_FRAMES` frames there is no backdrop, only the polarity.
+//! pixel is covered in half the samples (`polarity`). With fewer than `MIN_FRAMES` frames there
+//! is no backdrop, only the polarity.
 //! Where the lamps flicker, each frame's view is matched to the still first (`gain`). A pixel
 //! that shows one level in every sample while its neighbours change is a defective one, hot or
 //! dead (`stuck_pixels`): marked unmeasured in every frame, as an overexposed one is.
