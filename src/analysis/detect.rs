@@ -237,11 +237,17 @@ impl Part {
         self.sw += weight;
         self.su += weight * u as f64;
         self.sv += weight * v as f64;
-        self.extent = [
-            self.extent[0].min(u),
-            self.extent[1].min(v),
-            self.extent[2].max(u),
-            self.extent[3].max(v),
+        self.cover([u, v, u, v]);
+    }
+
+    /// The extent grown to take in `other`'s, [u0, v0, u1, v1].
+    fn cover(&mut self, other: [usize; 4]) {
+        let e = &mut self.extent;
+        *e = [
+            e[0].min(other[0]),
+            e[1].min(other[1]),
+            e[2].max(other[2]),
+            e[3].max(other[3]),
         ];
     }
 
@@ -250,12 +256,7 @@ impl Part {
         self.sw += other.sw;
         self.su += other.su;
         self.sv += other.sv;
-        self.extent = [
-            self.extent[0].min(other.extent[0]),
-            self.extent[1].min(other.extent[1]),
-            self.extent[2].max(other.extent[2]),
-            self.extent[3].max(other.extent[3]),
-        ];
+        self.cover(other.extent);
         self.clipped |= other.clipped;
     }
 

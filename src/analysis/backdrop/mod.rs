@@ -449,17 +449,7 @@ fn stuck_pixels(frames: &[GreyImage], rect: [usize; 4]) -> Vec<usize> {
 
 /// Per pixel of `rect`, the `idx`-th smallest of the frames' values (row-major over the rect).
 fn quantile(frames: &[GreyImage], rect: [usize; 4], idx: usize) -> Vec<f32> {
-    let mut column = vec![0f32; frames.len()];
-    let mut still = Vec::with_capacity((rect[2] - rect[0]) * (rect[3] - rect[1]));
-    for v in rect[1]..rect[3] {
-        for u in rect[0]..rect[2] {
-            for (c, f) in column.iter_mut().zip(frames) {
-                *c = f.at(u, v);
-            }
-            column.select_nth_unstable_by(idx, f32::total_cmp);
-            still.push(column[idx]);
-        }
-    }
+    let [still, _, _] = quantiles(frames, rect, [idx; 3]);
     still
 }
 
