@@ -181,11 +181,12 @@ pub(super) struct BlobPlan {
 /// tube end went unmeasured for 20–120 frames of a recording (fits rejected for settling 2 px
 /// from the centroid they began at), and on a synthetic one a fit from the bright part settled
 /// 3.2 px towards the light with the right radius. Also for a blob whose edge points are too
-/// few where the sphere has no track yet, from the blob's centroid: a side-lit sphere over a
-/// grey ground under a noise of 4 levels (an independent render drawn at random) gave too few
-/// edge points in every frame of one view, and so never a track. Only where the prediction
-/// lies on the blob, the blob is not cut by the view's border, and the other sphere (by its
-/// prediction and its blob) is clear of the disc: two discs in one blob are not one disc.
+/// few where the sphere has no track yet, from round the blob's centroid: a side-lit sphere over
+/// a grey ground under a noise of 4 levels (an independent render drawn at random) gave too few
+/// edge points in every frame of one view, and so never a track. Only where the start (with a
+/// track) or the disc found (without) lies on the blob, the blob is not cut by the view's
+/// border, and the other sphere (by its prediction and its blob) is clear of the disc: two
+/// discs in one blob are not one disc.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fit_from_track(
     img: &GreyImage,
@@ -202,19 +203,42 @@ pub(super) fn fit_from_track(
     if b.clipped || other_blob.is_some_and(|o| std::ptr::eq(o, b)) {
         return None;
     }
-    // No track yet (the sphere's first frames in this view): the blob's centroid, where the
-    // blob holds both sides of a disc whose shading crosses the ground's level
-    // (`detect::find_blobs`), is a start within a pixel or so.
-    let p = predicted[s].unwrap_or(b.centroid);
     let apart = radius[0] + radius[1] + 1.0;
-    if dist(p, b.centroid) >= radius[s]
-        || predicted[1 - s].is_some_and(|q| dist(p, q) < apart)
-        || other_blob.is_some_and(|o| dist(p, o.centroid) < apart)
-    {
-        return None;
-    }
+    let clear = |p: [f64; 2]| {
+        dist(p, b.centroid) < radius[s]
+            && !predicted[1 - s].is_some_and(|q| dist(p, q) < apart)
+            && !other_blob.is_some_and(|o| dist(p, o.centroid) < apart)
+    };
     let other = other_blob.map(|o| (o.centroid, radius[1 - s]));
-    profile_fit_at(img, view, p, radius[s], lv.background, other, dots)
+    if let Some(p) = predicted[s] {
+        return clear(p)
+            .then(|| profile_fit_at(img, view, p, radius[s], lv.background, other, dots))
+            .flatten();
+    }
+    // No track yet (the sphere's first frames in this view). Where the blob holds both sides
+    // of a disc whose shading crosses the ground's level (`detect::find_blobs`) its centroid is
+    // a start within a pixel or so; where it holds the lit side alone, the centroid lies up to
+    // a third of a radius or more towards the light, and a fit from there settles on a smaller
+    // disc nearer the light, or on none. So the fit starts also round the centroid, at a
+    // quarter and at half a radius in eight directions, and of the discs found the one whose
+    // radius is nearest the sphere's is taken: the size is known, where the light is not.
+    // (The first of equals, in this fixed order: the same bits every run.)
+    let mut starts = vec![b.centroid];
+    for reach in [0.25, 0.5] {
+        for k in 0..8 {
+            let (sin, cos) = (k as f64 * std::f64::consts::FRAC_PI_4).sin_cos();
+            let d = reach * radius[s];
+            starts.push([b.centroid[0] + d * cos, b.centroid[1] + d * sin]);
+        }
+    }
+    starts
+        .into_iter()
+        .filter_map(|p| profile_fit_at(img, view, p, radius[s], lv.background, other, dots))
+        .filter(|f| clear(f.centre))
+        .min_by(|f, g| {
+            let stray = |c: &CircleFit| (c.radius - radius[s]).abs();
+            stray(f).total_cmp(&stray(g))
+        })
 }
 
 /// One sphere's measurement from its blob: the circle fit (`fit`, made ahead or kept from the

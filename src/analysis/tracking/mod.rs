@@ -514,11 +514,14 @@ impl Tracker {
             let Some(b) = blob else { continue };
             let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
             let mut fit = cx.blob_fit(vi, view, b, radius[s], other, lv.background, dots);
-            if matches!(
-                fit,
-                Some(BlobFit::TooFewEdgePoints | BlobFit::Fitted(_, true))
-            ) {
-                let predicted = [0, 1].map(|k| self.memory[vi].predict(k, cx.t, self.recent_s));
+            let predicted = [0, 1].map(|k| self.memory[vi].predict(k, cx.t, self.recent_s));
+            // A fit whose edge a backdrop hid in part is refitted from the track only: without
+            // one, the blob (part of the disc) is no better a start than that fit's own, and
+            // refitted from its centroid a side-lit sphere entering a grey-ground view came out
+            // 5 px towards the light.
+            if matches!(fit, Some(BlobFit::TooFewEdgePoints))
+                || matches!(fit, Some(BlobFit::Fitted(_, true))) && predicted[s].is_some()
+            {
                 let from_track = stages::timed(Stage::Circles, || {
                     fit_from_track(
                         cx.img,
