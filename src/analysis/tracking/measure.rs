@@ -241,6 +241,64 @@ pub(super) fn fit_from_track(
         })
 }
 
+/// A blob's fit made again where the first may be wrong (`fit`, from `fit_blob`), and which
+/// of the two is kept:
+/// - too few edge points: from the track (`fit_from_track`), or without one from round the
+///   blob's centroid;
+/// - an edge a static backdrop hid in part: from the track, and that fit kept. Without a track
+///   the blob (part of the disc) is no better a start than the first fit's own, and refitted
+///   from its centroid a side-lit sphere entering a grey-ground view came out 5 px towards the
+///   light;
+/// - a fit on edge points more than `OFF_TRACK_PX` from where the sphere's own track puts it:
+///   from there too, and of the two discs the one whose radius is nearer the sphere's
+///   (`remembered_px` where it is within a tenth of the config's, else the config's) is kept.
+///   On a grey ground a shaded limb's outer edge and its inner one (where its shading crosses
+///   the ground's level) are both edges, and a fit on both put one side-lit disc 0.23 px too
+///   large, 1.5 px off its track and its truth.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn fit_again(
+    img: &GreyImage,
+    view: &View,
+    s: usize,
+    b: &Blob,
+    other_blob: Option<&Blob>,
+    predicted: [Option<[f64; 2]>; 2],
+    radius: [f64; 2],
+    remembered_px: Option<f64>,
+    lv: &ViewLevels,
+    dots: &[DotMask],
+    fit: BlobFit,
+) -> BlobFit {
+    let off_track = |f: &CircleFit| {
+        predicted[s].is_some_and(|p| (f.centre[0] - p[0]).hypot(f.centre[1] - p[1]) > OFF_TRACK_PX)
+    };
+    let again = || fit_from_track(img, view, s, b, other_blob, predicted, radius, lv, dots);
+    match fit {
+        BlobFit::TooFewEdgePoints => again().map_or(fit, |g| BlobFit::Fitted(g, true)),
+        BlobFit::Fitted(_, true) if predicted[s].is_some() => {
+            again().map_or(fit, |g| BlobFit::Fitted(g, true))
+        }
+        BlobFit::Fitted(f, false) if off_track(&f) => {
+            let expected = remembered_px
+                .filter(|r| (r - radius[s]).abs() < 0.1 * radius[s])
+                .unwrap_or(radius[s]);
+            match again() {
+                Some(g) if (g.radius - expected).abs() < (f.radius - expected).abs() => {
+                    BlobFit::Fitted(g, false)
+                }
+                _ => fit,
+            }
+        }
+        _ => fit,
+    }
+}
+
+/// How far an edge-point fit may lie from its track's prediction before a grey-level fit from
+/// the prediction is asked too, px (`fit_again`). Only when to look twice, not which to keep
+/// (the radius decides): in free flight a track predicts within a few hundredths of a pixel,
+/// and near the impact, where it can be pixels out, the second fit costs time, not accuracy.
+const OFF_TRACK_PX: f64 = 1.0;
+
 /// One sphere's measurement from its blob: the circle fit (`fit`, made ahead or kept from the
 /// first pass with the same arguments, else `fit_blob` now), its gates, and the dots inside.
 #[allow(clippy::too_many_arguments)]

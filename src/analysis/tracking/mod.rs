@@ -26,7 +26,7 @@ use identity::{
     assign, assign_by_continuity, assign_by_one_track, assign_by_prediction, assign_by_x,
     extrapolate, x_names_both, ViewMemory,
 };
-use measure::{fit_from_track, may_hold_both, measure_blob, measure_touching, BlobFit};
+use measure::{fit_again, may_hold_both, measure_blob, measure_touching, BlobFit};
 
 #[derive(Clone, Debug)]
 pub struct Measurement {
@@ -515,15 +515,9 @@ impl Tracker {
             let other = assigned[1 - s].map(|o| (o.centroid, radius[1 - s]));
             let mut fit = cx.blob_fit(vi, view, b, radius[s], other, lv.background, dots);
             let predicted = [0, 1].map(|k| self.memory[vi].predict(k, cx.t, self.recent_s));
-            // A fit whose edge a backdrop hid in part is refitted from the track only: without
-            // one, the blob (part of the disc) is no better a start than that fit's own, and
-            // refitted from its centroid a side-lit sphere entering a grey-ground view came out
-            // 5 px towards the light.
-            if matches!(fit, Some(BlobFit::TooFewEdgePoints))
-                || matches!(fit, Some(BlobFit::Fitted(_, true))) && predicted[s].is_some()
-            {
-                let from_track = stages::timed(Stage::Circles, || {
-                    fit_from_track(
+            if let Some(first) = fit {
+                fit = Some(stages::timed(Stage::Circles, || {
+                    fit_again(
                         cx.img,
                         view,
                         s,
@@ -531,13 +525,12 @@ impl Tracker {
                         assigned[1 - s],
                         predicted,
                         radius,
+                        self.memory[vi].radius[s],
                         &lv,
                         dots,
+                        first,
                     )
-                });
-                if let Some(f) = from_track {
-                    fit = Some(BlobFit::Fitted(f, true));
-                }
+                }));
             }
             let held = cx.pass.radii(cx.i, vi);
             let measured = measure_blob(

@@ -451,3 +451,77 @@ fn a_sphere_without_a_track_whose_blob_is_its_lit_side_is_fitted_where_it_is() {
         fit.radius
     );
 }
+
+/// A side-lit sphere whose edge-point fit came out too large and 1.5 px off its track (a shaded
+/// limb's inner and outer edges both taken, hw-sim's grey-ground look): the fit from the track
+/// has the sphere's radius and is kept. A fit on the track is kept as it is, and so is one off
+/// a track that is itself off (near the impact) where the track's disc is no nearer the
+/// sphere's size.
+#[test]
+fn an_edge_fit_off_its_track_gives_way_to_the_disc_of_the_spheres_size() {
+    use super::measure::{fit_again, BlobFit};
+    use crate::analysis::circle::CircleFit;
+    use crate::analysis::detect::{self, tests as synthetic};
+    let r = 6.85;
+    let centre = [100.3, 40.7];
+    let img = synthetic::frame(104.0, r, &[centre], &synthetic::side_lit(r));
+    let view = synthetic::view();
+    let lv = detect::levels(&img, &view);
+    let blobs = detect::find_blobs(&img, &view, &lv, r, 0.5);
+    let [blob] = &blobs[..] else {
+        panic!("blobs {blobs:?}, expected the sphere's");
+    };
+    let again = |first: CircleFit, track: [f64; 2]| {
+        let fit = BlobFit::Fitted(first, false);
+        match fit_again(
+            &img,
+            &view,
+            0,
+            blob,
+            None,
+            [Some(track), None],
+            [r, r],
+            Some(r),
+            &lv,
+            &[],
+            fit,
+        ) {
+            BlobFit::Fitted(f, _) => f,
+            other => panic!("{other:?}"),
+        }
+    };
+    let wrong = CircleFit::start_at([centre[0] + 1.2, centre[1] - 0.9], r + 0.23);
+    let kept = again(wrong, centre);
+    let off = (kept.centre[0] - centre[0]).hypot(kept.centre[1] - centre[1]);
+    assert!(
+        off < 0.1,
+        "kept {:?} r {:.2}, {off:.3} px off",
+        kept.centre,
+        kept.radius
+    );
+    let right = CircleFit::start_at(centre, r);
+    assert_eq!(again(right, [centre[0] + 0.5, centre[1]]).centre, centre);
+    assert_eq!(
+        again(right, [centre[0] + 3.0, centre[1] + 2.0]).centre,
+        centre
+    );
+    // A fit whose edge a backdrop hid in part, with no track: kept, not refitted from the blob.
+    let hidden = BlobFit::Fitted(right, true);
+    let kept = fit_again(
+        &img,
+        &view,
+        0,
+        blob,
+        None,
+        [None, None],
+        [r, r],
+        None,
+        &lv,
+        &[],
+        hidden,
+    );
+    assert!(
+        matches!(kept, BlobFit::Fitted(f, true) if f.centre == centre),
+        "{kept:?}"
+    );
+}
