@@ -25,6 +25,7 @@
 use crate::analysis::geometry::ViewKind;
 
 mod bundle;
+mod checked;
 mod flights;
 pub mod grid;
 mod maps;
@@ -112,6 +113,9 @@ pub struct Calibrated {
     /// centre), and whether it was kept (beyond 3σ) and written into both views.
     pub lens_k1: Fitted,
     pub lens_kept: bool,
+    /// Why a lens the flights showed was not kept after all: the maps fitted with it would be
+    /// refused by the config's reader (`checked`).
+    pub lens_refused: Option<String>,
     /// The dot grid's fit, where one was given (its k1 is then the one used).
     pub grid: Option<grid::GridFit>,
     pub geometry: crate::config::Geometry,
@@ -233,11 +237,27 @@ fn whole_discs_only(mut obs: Vec<FrameObs>) -> Vec<FrameObs> {
 }
 
 /// Fits the views' maps from one or more recordings of one rig (the first sets the
-/// provisional scale; the flights of all are fitted together).
+/// provisional scale; the flights of all are fitted together). The geometry is checked as the
+/// config's reader checks it: a map the analysis would refuse is never written. Where a lens the
+/// flights show gives such maps, they are fitted again without it (`lens_refused` says why);
+/// where they are refused even so, an error names the key.
 pub fn calibrate(
     sources: &mut [&mut dyn FrameSource],
     cfg: &Config,
     grid: Option<(&analysis::image::GreyImage, f64, &str)>,
+) -> Result<Calibrated, CalibrateError> {
+    let first = calibrate_once(sources, cfg, grid, true)?;
+    checked::settled(first, grid.is_some(), || {
+        calibrate_once(sources, cfg, grid, false)
+    })
+}
+
+/// `calibrate`'s fit; `lens_from_flights`: whether a lens the flights show (beyond 3σ) is kept.
+fn calibrate_once(
+    sources: &mut [&mut dyn FrameSource],
+    cfg: &Config,
+    grid: Option<(&analysis::image::GreyImage, f64, &str)>,
+    lens_from_flights: bool,
 ) -> Result<Calibrated, CalibrateError> {
     let (src, others) = sources.split_first_mut().ok_or(CalibrateError::Data {
         source_name: "calibrate".into(),
@@ -392,7 +412,7 @@ pub fn calibrate(
         None => {
             let with_lens = fit(Some(frame), None, free)?;
             let k1 = with_lens.lens_k1;
-            let found = k1.value.abs() > 3.0 * k1.sigma;
+            let found = lens_from_flights && k1.value.abs() > 3.0 * k1.sigma;
             let bundle = if found {
                 with_lens
             } else {
@@ -422,7 +442,9 @@ pub fn calibrate(
     // rigs drawn at random, calibrated, a rig through k1 = −0.016 whose lens was left out
     // (−0.021 ± 0.009 found) had its mirror rolled 7.0 ± 1.0° for 0.6°, and z velocities 6σ
     // off (docs/accuracy.md, session 48).
-    let bundle = if lens_found {
+    // (Not where a lens was shown and its maps refused (`checked`): those maps are no
+    // measure of how far a real lens would move these.)
+    let bundle = if lens_found || !lens_from_flights {
         bundle
     } else {
         match fit(Some(frame), None, shows) {
@@ -561,6 +583,7 @@ pub fn calibrate(
         mirror,
         lens_k1,
         lens_kept: lens_found,
+        lens_refused: None,
         grid: grid_fit,
         geometry,
     })

@@ -102,11 +102,14 @@ impl Calibrated {
                     "# lens: k1 {} (the fractional displacement at the frame's corners, about its centre);\n\
                      #   {}\n",
                     p(&self.lens_k1, "", 5),
-                    if self.lens_kept {
-                        "beyond 3σ, so written into both views; its σ is not carried into the estimates' uncertainty"
-                    } else {
-                        "within 3σ of none, so the maps were fitted again without a lens; each map parameter's σ\n\
-                         #   takes in how far a lens fitted moves it, and goes into the estimates' uncertainty"
+                    match (&self.lens_refused, self.lens_kept) {
+                        (Some(why), _) => format!(
+                            "NOT written: {why};\n\
+                             #   so the maps were fitted again without a lens (their σ do not take in one)"
+                        ),
+                        (None, true) => "beyond 3σ, so written into both views; its σ is not carried into the estimates' uncertainty".into(),
+                        (None, false) => "within 3σ of none, so the maps were fitted again without a lens; each map parameter's σ\n\
+                         #   takes in how far a lens fitted moves it, and goes into the estimates' uncertainty".into(),
                     },
                 );
             }

@@ -6,6 +6,7 @@ mod geometry;
 mod validate;
 
 pub use geometry::{parse_axis, Geometry, ViewGeometry};
+pub(crate) use validate::check_geometry;
 
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};

@@ -153,9 +153,7 @@ impl Config {
                     v.region, c.width, c.height
                 ));
             }
-            check_view_map(&key, v, plane)?;
-            check_geometry_uncertainty(&key, v)?;
-            check_lens(&key, v)?;
+            check_view(&key, v, plane)?;
         }
         for i in 0..2 {
             let (d, m) = self.spheres.sphere(i);
@@ -218,6 +216,25 @@ impl Config {
 /// How well a view's map is known: a scale within 20 % and turns within 10° (a map known worse
 /// than that is not a map; the re-run that carries it into the estimates is linear only for
 /// small steps).
+/// A view's map, its uncertainties and its lens (not its region, which needs the frame's size):
+/// `depth_axis` the world axis the view looks along (2 direct, 1 mirror).
+pub(crate) fn check_view(key: &str, v: &ViewGeometry, depth_axis: usize) -> Result<(), String> {
+    check_view_map(key, v, depth_axis)?;
+    check_geometry_uncertainty(key, v)?;
+    check_lens(key, v)
+}
+
+/// Every view's `check_view`, as `Config::validate` makes them: what a geometry written for a
+/// config (by calibrate) must pass to be read back.
+pub(crate) fn check_geometry(g: &Geometry) -> Result<(), String> {
+    for (name, view, plane) in [("direct", &g.direct, 2), ("mirror", &g.mirror, 1)] {
+        if let Some(v) = view {
+            check_view(&format!("geometry.{name}"), v, plane)?;
+        }
+    }
+    Ok(())
+}
+
 fn check_geometry_uncertainty(key: &str, v: &ViewGeometry) -> Result<(), String> {
     if let Some(p) = v.px_per_mm_uncertainty_percent {
         if !(p.is_finite() && (0.0..=20.0).contains(&p)) {
