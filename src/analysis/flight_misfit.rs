@@ -16,11 +16,14 @@
 //! 17 sets of eight such renders (after `radius_misfit::widen_against_the_map`): centres
 //! within ±1σ 73.3 → 75.5 %, beyond 3σ 243 → 131, beyond 5σ 20 → 6 of 41 990 (the texture's
 //! 14 → 4); on hw-sim's 190 varied-look recordings beyond 5σ 0.06 → 0.05 % (docs/accuracy.md,
-//! session 55). What it cannot see: a view's centres out alike in every frame, which the
-//! flight's offset takes up (the texture's 0.03–0.1 px per sphere and view).
+//! session 55). Centres in the impact's gap, in no phase, are checked against the flight on
+//! their side of it alone (`widened`). What it cannot see: a view's centres out alike in every
+//! frame, which the flight's offset takes up (the texture's 0.03–0.1 px per sphere and view;
+//! on hw-sim's grey-ground look a sphere half hidden behind the other in the frames round the
+//! impact, its v 4–6 px off in a dozen frames, which its flight follows).
 
 use super::geometry::View;
-use super::kinematics::Fits;
+use super::kinematics::{self, Fits};
 use super::phases;
 use super::tracking::FrameObs;
 
@@ -37,7 +40,8 @@ const CHI2_1_MEDIAN: f64 = 0.454_936;
 const MIN_CENTRES: usize = 6;
 
 /// `obs` with each centre's σ widened by its scatter about the phase's flight (see the module's
-/// comment); frames outside the phases `ph` (0–3: a before, b before, a after, b after, each
+/// comment); frames in the impact's gap are checked against the flight on their side of it;
+/// other frames outside the phases `ph` (0–3: a before, b before, a after, b after, each
 /// referenced at `split`) and phases whose fit lacks an axis keep theirs.
 pub(super) fn widened(
     obs: &[FrameObs],
@@ -87,6 +91,37 @@ pub(super) fn widened(
                         var += d[axis] * d[axis];
                     }
                     m.sigma_px[axis] = var.sqrt().max(m.sigma_px[axis]);
+                }
+            }
+        }
+    }
+    // The frames between a sphere's last before the impact and its first after are in no phase
+    // (contact, one silhouette of both, a disc given the other's name): each centre there is
+    // checked against its flight on its side of `split` (each flight is free up to the contact)
+    // and carries its disagreement where that is beyond `OWN_DISAGREEMENT_SIGMAS` of its σ.
+    // Why: on hw-sim's varied looks (seed 4105) the direct view's one disc in the frame after
+    // the impact was a's, named b, and reported 13.4 px from b at σ 0.015 px.
+    for s in 0..2 {
+        let (Some(&last), Some(&first)) = (ph[s].iter().max(), ph[2 + s].iter().min()) else {
+            continue;
+        };
+        let gap = obs.iter().zip(out.iter_mut()).take(first).skip(last + 1);
+        for (f, reported) in gap {
+            let k = if f.time_s < split { s } else { 2 + s };
+            if fits[k].axes.iter().any(Option::is_none) {
+                continue;
+            }
+            let (p, _) = kinematics::pos_vel(&fits[k], f.time_s - split, g);
+            for (vi, view) in views.iter().enumerate() {
+                let Some(m) = reported.spheres[s].get_mut(vi).and_then(Option::as_mut) else {
+                    continue;
+                };
+                let at = view.project(&p);
+                for ((c, a), sigma) in m.centre_px.iter().zip(at).zip(m.sigma_px.iter_mut()) {
+                    let d = c - a;
+                    if d.is_finite() && d.abs() > OWN_DISAGREEMENT_SIGMAS * *sigma {
+                        *sigma = sigma.hypot(d);
+                    }
                 }
             }
         }

@@ -430,6 +430,53 @@ fn centres_that_scatter_about_their_flight_beyond_their_sigma_say_so_in_the_repo
     }
 }
 
+/// A centre in the impact's gap (in no phase: the frames between a sphere's last before the
+/// impact and its first after) that lies off its flight carries its disagreement: the disc
+/// after an impact was the other sphere's, 13 px away, and reported at σ 0.015 px. Centres in
+/// the gap that lie on their flight, and frames outside the gap, keep their σ.
+#[test]
+fn a_centre_in_the_impacts_gap_off_its_flight_says_so_in_the_report() {
+    let cfg = Config::default_config();
+    let views = geometry::views(&cfg);
+    let mut obs = steady_phase_of_a(&views, &|_| 0.0);
+    let before: Vec<usize> = (0..20).collect();
+    let after: Vec<usize> = (25..30).collect();
+    let all: Vec<usize> = (0..30).collect();
+    // The flight referenced at the impact (`split`), as the phases' fits are.
+    let split = obs[22].time_s;
+    let mut at_split = obs.clone();
+    for f in &mut at_split {
+        f.time_s -= split;
+    }
+    let (series, floor, weights) = phases::series_and_sigma(&at_split, &views, 0, &all);
+    let fit = SideFit::fit_weighted(&series, &weights, 0.0, 0.0, floor);
+    let fits: Fits = [fit; 4];
+    let ph = [before, Vec::new(), after, Vec::new()];
+    for k in [2, 23] {
+        if let Some(m) = obs[k].spheres[0][0].as_mut() {
+            m.centre_px[1] += 13.0;
+        }
+    }
+    let reported = flight_misfit::widened(&obs, &views, &fits, &ph, split, 0.0);
+    let sigma = |k: usize, vi: usize| {
+        reported[k].spheres[0][vi]
+            .as_ref()
+            .map_or([f64::NAN; 2], |m| m.sigma_px)
+    };
+    assert!(sigma(23, 0)[1] > 12.0, "frame 23: {:?}", sigma(23, 0));
+    assert_eq!(sigma(23, 0)[0], 0.02, "its u lies on the flight");
+    for k in [20, 21, 22, 24] {
+        assert_eq!(sigma(k, 0), [0.02, 0.02], "frame {k}, on its flight");
+    }
+    for k in 20..25 {
+        assert_eq!(sigma(k, 1), [0.02, 0.02], "frame {k}'s mirror view");
+    }
+    // Frame 2 is in a phase: its blunder is the phase's business (the median keeps one
+    // blunder from setting the scale), not the gap's, and a scatter check that sees it as
+    // beyond 3σ widens it as before.
+    assert!(sigma(2, 0)[1] > 12.0, "frame 2: {:?}", sigma(2, 0));
+}
+
 /// A phase of 30 frames whose diameters rise by 0.1 px in both views, steadily (a blurred
 /// disc's held radius drifting along its phase): half that rise in mm/s, split over each
 /// view's two axes, comes back as the velocity it may have moved; diameters that only
