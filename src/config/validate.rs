@@ -139,12 +139,7 @@ impl Config {
                     .into(),
             );
         }
-        for (name, view, plane) in [
-            ("direct", &self.geometry.direct, 2),
-            ("mirror", &self.geometry.mirror, 1),
-        ] {
-            let Some(v) = view else { continue };
-            let key = format!("geometry.{name}");
+        for (key, v, plane) in views_of(&self.geometry) {
             let [u0, v0, w, h] = v.region;
             let (u_end, v_end) = (u64::from(u0) + u64::from(w), u64::from(v0) + u64::from(h));
             if w == 0 || h == 0 || u_end > u64::from(c.width) || v_end > u64::from(c.height) {
@@ -213,12 +208,9 @@ impl Config {
     }
 }
 
-/// How well a view's map is known: a scale within 20 % and turns within 10° (a map known worse
-/// than that is not a map; the re-run that carries it into the estimates is linear only for
-/// small steps).
 /// A view's map, its uncertainties and its lens (not its region, which needs the frame's size):
 /// `depth_axis` the world axis the view looks along (2 direct, 1 mirror).
-pub(crate) fn check_view(key: &str, v: &ViewGeometry, depth_axis: usize) -> Result<(), String> {
+fn check_view(key: &str, v: &ViewGeometry, depth_axis: usize) -> Result<(), String> {
     check_view_map(key, v, depth_axis)?;
     check_geometry_uncertainty(key, v)?;
     check_lens(key, v)
@@ -227,14 +219,23 @@ pub(crate) fn check_view(key: &str, v: &ViewGeometry, depth_axis: usize) -> Resu
 /// Every view's `check_view`, as `Config::validate` makes them: what a geometry written for a
 /// config (by calibrate) must pass to be read back.
 pub(crate) fn check_geometry(g: &Geometry) -> Result<(), String> {
-    for (name, view, plane) in [("direct", &g.direct, 2), ("mirror", &g.mirror, 1)] {
-        if let Some(v) = view {
-            check_view(&format!("geometry.{name}"), v, plane)?;
-        }
+    for (key, v, plane) in views_of(g) {
+        check_view(&key, v, plane)?;
     }
     Ok(())
 }
 
+/// The views a geometry gives, direct first: each one's key, map and the world axis it looks
+/// along (2 direct, 1 mirror).
+fn views_of(g: &Geometry) -> impl Iterator<Item = (String, &ViewGeometry, usize)> {
+    [("direct", &g.direct, 2), ("mirror", &g.mirror, 1)]
+        .into_iter()
+        .filter_map(|(name, view, plane)| Some((format!("geometry.{name}"), view.as_ref()?, plane)))
+}
+
+/// How well a view's map is known: a scale within 20 % and turns within 10° (a map known worse
+/// than that is not a map; the re-run that carries it into the estimates is linear only for
+/// small steps).
 fn check_geometry_uncertainty(key: &str, v: &ViewGeometry) -> Result<(), String> {
     if let Some(p) = v.px_per_mm_uncertainty_percent {
         if !(p.is_finite() && (0.0..=20.0).contains(&p)) {

@@ -173,128 +173,139 @@ pub(super) struct BlobPlan {
     unfinished: BlobFit,
 }
 
-/// Sphere `s`'s disc fitted on the grey levels from where its own track in this view puts it
-/// (`predicted`, both spheres'), for a blob whose edge a static backdrop hid in part or whole (a
-/// tube end, a ruler). Why: the blob the backdrop's subtraction leaves is then only part of
-/// the disc (darker than the backdrop at the limb, brighter inside), its centroid pixels off,
-/// and the few edge points left may trace the bright part alone; spheres passing in front of a
-/// tube end went unmeasured for 20–120 frames of a recording (fits rejected for settling 2 px
-/// from the centroid they began at), and on a synthetic one a fit from the bright part settled
-/// 3.2 px towards the light with the right radius. Also for a blob whose edge points are too
-/// few where the sphere has no track yet, from round the blob's centroid: a side-lit sphere over
-/// a grey ground under a noise of 4 levels (an independent render drawn at random) gave too few
-/// edge points in every frame of one view, and so never a track. Only where the start (with a
-/// track) or the disc found (without) lies on the blob, the blob is not cut by the view's
-/// border, and the other sphere (by its prediction and its blob) is clear of the disc: two
-/// discs in one blob are not one disc.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn fit_from_track(
-    img: &GreyImage,
-    view: &View,
-    s: usize,
-    b: &Blob,
-    other_blob: Option<&Blob>,
-    predicted: [Option<[f64; 2]>; 2],
-    radius: [f64; 2],
-    lv: &ViewLevels,
-    dots: &[DotMask],
-) -> Option<CircleFit> {
-    let dist = |p: [f64; 2], q: [f64; 2]| (p[0] - q[0]).hypot(p[1] - q[1]);
-    if b.clipped || other_blob.is_some_and(|o| std::ptr::eq(o, b)) {
-        return None;
-    }
-    let apart = radius[0] + radius[1] + 1.0;
-    let clear = |p: [f64; 2]| {
-        dist(p, b.centroid) < radius[s]
-            && !predicted[1 - s].is_some_and(|q| dist(p, q) < apart)
-            && !other_blob.is_some_and(|o| dist(p, o.centroid) < apart)
-    };
-    let other = other_blob.map(|o| (o.centroid, radius[1 - s]));
-    if let Some(p) = predicted[s] {
-        return clear(p)
-            .then(|| profile_fit_at(img, view, p, radius[s], lv.background, other, dots))
-            .flatten();
-    }
-    // No track yet (the sphere's first frames in this view). Where the blob holds both sides
-    // of a disc whose shading crosses the ground's level (`detect::find_blobs`) its centroid is
-    // a start within a pixel or so; where it holds the lit side alone, the centroid lies up to
-    // a third of a radius or more towards the light, and a fit from there settles on a smaller
-    // disc nearer the light, or on none. So the fit starts also round the centroid, at a
-    // quarter and at half a radius in eight directions, and of the discs found the one whose
-    // radius is nearest the sphere's is taken: the size is known, where the light is not.
-    // (The first of equals, in this fixed order: the same bits every run.)
-    let mut starts = vec![b.centroid];
-    for reach in [0.25, 0.5] {
-        for k in 0..8 {
-            let (sin, cos) = (k as f64 * std::f64::consts::FRAC_PI_4).sin_cos();
-            let d = reach * radius[s];
-            starts.push([b.centroid[0] + d * cos, b.centroid[1] + d * sin]);
-        }
-    }
-    starts
-        .into_iter()
-        .filter_map(|p| profile_fit_at(img, view, p, radius[s], lv.background, other, dots))
-        .filter(|f| clear(f.centre))
-        .min_by(|f, g| {
-            let stray = |c: &CircleFit| (c.radius - radius[s]).abs();
-            stray(f).total_cmp(&stray(g))
-        })
+/// Sphere `s`'s blob in one view and frame, with what fitting it again needs: the other
+/// sphere's blob, both spheres' predictions from their tracks in this view, both radii, px.
+#[derive(Clone, Copy)]
+pub(super) struct Refit<'a> {
+    pub img: &'a GreyImage,
+    pub view: &'a View,
+    pub s: usize,
+    pub blob: &'a Blob,
+    pub other_blob: Option<&'a Blob>,
+    pub predicted: [Option<[f64; 2]>; 2],
+    pub radius: [f64; 2],
+    pub lv: &'a ViewLevels,
+    pub dots: &'a [DotMask],
 }
 
-/// A blob's fit made again where the first may be wrong (`fit`, from `fit_blob`), and which
-/// of the two is kept:
-/// - too few edge points: from the track (`fit_from_track`), or without one from round the
-///   blob's centroid;
-/// - an edge a static backdrop hid in part: from the track, and that fit kept. Without a track
-///   the blob (part of the disc) is no better a start than the first fit's own, and refitted
-///   from its centroid a side-lit sphere entering a grey-ground view came out 5 px towards the
-///   light;
-/// - a fit on edge points more than `OFF_TRACK_PX` from where the sphere's own track puts it:
-///   from there too, and of the two discs the one whose radius is nearer the sphere's
-///   (`remembered_px` where it is within a tenth of the config's, else the config's) is kept.
-///   On a grey ground a shaded limb's outer edge and its inner one (where its shading crosses
-///   the ground's level) are both edges, and a fit on both put one side-lit disc 0.23 px too
-///   large, 1.5 px off its track and its truth.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn fit_again(
-    img: &GreyImage,
-    view: &View,
-    s: usize,
-    b: &Blob,
-    other_blob: Option<&Blob>,
-    predicted: [Option<[f64; 2]>; 2],
-    radius: [f64; 2],
-    remembered_px: Option<f64>,
-    lv: &ViewLevels,
-    dots: &[DotMask],
-    fit: BlobFit,
-) -> BlobFit {
-    let off_track = |f: &CircleFit| {
-        predicted[s].is_some_and(|p| (f.centre[0] - p[0]).hypot(f.centre[1] - p[1]) > OFF_TRACK_PX)
-    };
-    let again = || fit_from_track(img, view, s, b, other_blob, predicted, radius, lv, dots);
-    match fit {
-        BlobFit::TooFewEdgePoints => again().map_or(fit, |g| BlobFit::Fitted(g, true)),
-        BlobFit::Fitted(_, true) if predicted[s].is_some() => {
-            again().map_or(fit, |g| BlobFit::Fitted(g, true))
+impl Refit<'_> {
+    /// Sphere `s`'s disc fitted on the grey levels from where its own track in this view puts it
+    /// (`predicted`, both spheres'), for a blob whose edge a static backdrop hid in part or whole
+    /// (a tube end, a ruler). Why: the blob the backdrop's subtraction leaves is then only part of
+    /// the disc (darker than the backdrop at the limb, brighter inside), its centroid pixels off,
+    /// and the few edge points left may trace the bright part alone; spheres passing in front of a
+    /// tube end went unmeasured for 20–120 frames of a recording (fits rejected for settling 2 px
+    /// from the centroid they began at), and on a synthetic one a fit from the bright part settled
+    /// 3.2 px towards the light with the right radius. Also for a blob whose edge points are too
+    /// few where the sphere has no track yet, from round the blob's centroid: a side-lit sphere
+    /// over a grey ground under a noise of 4 levels (an independent render drawn at random) gave
+    /// too few edge points in every frame of one view, and so never a track. Only where the start
+    /// (with a track) or the disc found (without) lies on the blob, the blob is not cut by the
+    /// view's border, and the other sphere (by its prediction and its blob) is clear of the disc:
+    /// two discs in one blob are not one disc.
+    pub(super) fn grey_level_fit(&self) -> Option<CircleFit> {
+        let Refit {
+            img,
+            view,
+            s,
+            blob: b,
+            other_blob,
+            predicted,
+            radius,
+            lv,
+            dots,
+        } = *self;
+        let dist = |p: [f64; 2], q: [f64; 2]| (p[0] - q[0]).hypot(p[1] - q[1]);
+        if b.clipped || other_blob.is_some_and(|o| std::ptr::eq(o, b)) {
+            return None;
         }
-        BlobFit::Fitted(f, false) if off_track(&f) => {
-            let expected = remembered_px
-                .filter(|r| (r - radius[s]).abs() < 0.1 * radius[s])
-                .unwrap_or(radius[s]);
-            match again() {
-                Some(g) if (g.radius - expected).abs() < (f.radius - expected).abs() => {
-                    BlobFit::Fitted(g, false)
-                }
-                _ => fit,
+        let apart = radius[0] + radius[1] + 1.0;
+        let clear = |p: [f64; 2]| {
+            dist(p, b.centroid) < radius[s]
+                && !predicted[1 - s].is_some_and(|q| dist(p, q) < apart)
+                && !other_blob.is_some_and(|o| dist(p, o.centroid) < apart)
+        };
+        let other = other_blob.map(|o| (o.centroid, radius[1 - s]));
+        if let Some(p) = predicted[s] {
+            return clear(p)
+                .then(|| profile_fit_at(img, view, p, radius[s], lv.background, other, dots))
+                .flatten();
+        }
+        // No track yet (the sphere's first frames in this view). Where the blob holds both sides
+        // of a disc whose shading crosses the ground's level (`detect::find_blobs`) its centroid is
+        // a start within a pixel or so; where it holds the lit side alone, the centroid lies up to
+        // a third of a radius or more towards the light, and a fit from there settles on a smaller
+        // disc nearer the light, or on none. So the fit starts also round the centroid, at a
+        // quarter and at half a radius in eight directions, and of the discs found the one whose
+        // radius is nearest the sphere's is taken: the size is known, where the light is not.
+        // (The first of equals, in this fixed order: the same bits every run.)
+        let mut starts = vec![b.centroid];
+        for reach in [0.25, 0.5] {
+            for k in 0..8 {
+                let (sin, cos) = (k as f64 * std::f64::consts::FRAC_PI_4).sin_cos();
+                let d = reach * radius[s];
+                starts.push([b.centroid[0] + d * cos, b.centroid[1] + d * sin]);
             }
         }
-        _ => fit,
+        starts
+            .into_iter()
+            .filter_map(|p| profile_fit_at(img, view, p, radius[s], lv.background, other, dots))
+            .filter(|f| clear(f.centre))
+            .min_by(|f, g| {
+                let stray = |c: &CircleFit| (c.radius - radius[s]).abs();
+                stray(f).total_cmp(&stray(g))
+            })
+    }
+
+    /// A blob's fit made again where the first may be wrong (`fit`, from `fit_blob`), and which of
+    /// the two is kept:
+    /// - too few edge points: from the track (`Refit::grey_level_fit`), or without one from round
+    ///   the blob's centroid;
+    /// - an edge a static backdrop hid in part: from the track, and that fit kept. Without a track
+    ///   the blob (part of the disc) is no better a start than the first fit's own, and refitted
+    ///   from its centroid a side-lit sphere entering a grey-ground view came out 5 px towards the
+    ///   light;
+    /// - a fit on edge points more than `OFF_TRACK_PX` from where the sphere's own track puts it:
+    ///   from there too, and of the two discs the one whose radius is nearer the sphere's
+    ///   (`remembered_px` where it is within a tenth of the config's, else the config's) is kept.
+    ///   On a grey ground a shaded limb's outer edge and its inner one (where its shading crosses
+    ///   the ground's level) are both edges, and a fit on both put one side-lit disc 0.23 px too
+    ///   large, 1.5 px off its track and its truth.
+    pub(super) fn again(&self, fit: BlobFit, remembered_px: Option<f64>) -> BlobFit {
+        let Refit {
+            s,
+            predicted,
+            radius,
+            ..
+        } = *self;
+        let off_track = |f: &CircleFit| {
+            predicted[s]
+                .is_some_and(|p| (f.centre[0] - p[0]).hypot(f.centre[1] - p[1]) > OFF_TRACK_PX)
+        };
+        let again = || self.grey_level_fit();
+        match fit {
+            BlobFit::TooFewEdgePoints => again().map_or(fit, |g| BlobFit::Fitted(g, true)),
+            BlobFit::Fitted(_, true) if predicted[s].is_some() => {
+                again().map_or(fit, |g| BlobFit::Fitted(g, true))
+            }
+            BlobFit::Fitted(f, false) if off_track(&f) => {
+                let expected = remembered_px
+                    .filter(|r| (r - radius[s]).abs() < 0.1 * radius[s])
+                    .unwrap_or(radius[s]);
+                match again() {
+                    Some(g) if (g.radius - expected).abs() < (f.radius - expected).abs() => {
+                        BlobFit::Fitted(g, false)
+                    }
+                    _ => fit,
+                }
+            }
+            _ => fit,
+        }
     }
 }
 
 /// How far an edge-point fit may lie from its track's prediction before a grey-level fit from
-/// the prediction is asked too, px (`fit_again`). Only when to look twice, not which to keep
+/// the prediction is asked too, px (`Refit::again`). Only when to look twice, not which to keep
 /// (the radius decides): in free flight a track predicts within a few hundredths of a pixel,
 /// and near the impact, where it can be pixels out, the second fit costs time, not accuracy.
 const OFF_TRACK_PX: f64 = 1.0;

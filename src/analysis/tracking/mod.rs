@@ -26,7 +26,7 @@ use identity::{
     assign, assign_by_continuity, assign_by_one_track, assign_by_prediction, assign_by_x,
     extrapolate, x_names_both, ViewMemory,
 };
-use measure::{fit_again, may_hold_both, measure_blob, measure_touching, BlobFit};
+use measure::{may_hold_both, measure_blob, measure_touching, BlobFit, Refit};
 
 #[derive(Clone, Debug)]
 pub struct Measurement {
@@ -516,20 +516,20 @@ impl Tracker {
             let mut fit = cx.blob_fit(vi, view, b, radius[s], other, lv.background, dots);
             let predicted = [0, 1].map(|k| self.memory[vi].predict(k, cx.t, self.recent_s));
             if let Some(first) = fit {
+                let refit = Refit {
+                    img: cx.img,
+                    view,
+                    s,
+                    blob: b,
+                    other_blob: assigned[1 - s],
+                    predicted,
+                    radius,
+                    lv: &lv,
+                    dots,
+                };
+                let remembered_px = self.memory[vi].radius[s];
                 fit = Some(stages::timed(Stage::Circles, || {
-                    fit_again(
-                        cx.img,
-                        view,
-                        s,
-                        b,
-                        assigned[1 - s],
-                        predicted,
-                        radius,
-                        self.memory[vi].radius[s],
-                        &lv,
-                        dots,
-                        first,
-                    )
+                    refit.again(first, remembered_px)
                 }));
             }
             let held = cx.pass.radii(cx.i, vi);

@@ -381,6 +381,57 @@ fn a_lone_circle_too_large_over_the_other_spheres_track_may_hold_both() {
     );
 }
 
+/// A side-lit sphere over a grey ground under a noise of 4 levels, as detection finds it.
+struct SideLit {
+    img: crate::analysis::image::GreyImage,
+    view: crate::analysis::geometry::View,
+    lv: crate::analysis::detect::ViewLevels,
+    blob: crate::analysis::detect::Blob,
+    r: f64,
+}
+
+impl SideLit {
+    /// Radius `r` at `centre`: the frame, its view and levels, and its one blob.
+    fn new(r: f64, centre: [f64; 2]) -> SideLit {
+        use crate::analysis::detect::{self, tests as synthetic};
+        let img = synthetic::frame(104.0, r, &[centre], &synthetic::side_lit(r));
+        let view = synthetic::view();
+        let lv = detect::levels(&img, &view);
+        let blobs = detect::find_blobs(&img, &view, &lv, r, 0.5);
+        let [blob] = &blobs[..] else {
+            panic!("blobs {blobs:?}, expected the sphere's");
+        };
+        let blob = blob.clone();
+        SideLit {
+            img,
+            view,
+            lv,
+            blob,
+            r,
+        }
+    }
+
+    /// Sphere a's refit of `blob` (its own, or one made of it), alone in the view, its track
+    /// at `track`.
+    fn refit<'a>(
+        &'a self,
+        blob: &'a crate::analysis::detect::Blob,
+        track: Option<[f64; 2]>,
+    ) -> super::measure::Refit<'a> {
+        super::measure::Refit {
+            img: &self.img,
+            view: &self.view,
+            s: 0,
+            blob,
+            other_blob: None,
+            predicted: [track, None],
+            radius: [self.r; 2],
+            lv: &self.lv,
+            dots: &[],
+        }
+    }
+}
+
 /// A side-lit sphere over a grey ground under a noise of 4 levels, its first frame in a view
 /// (no track yet): the grey-level fit from the blob's centroid measures it within a tenth of a
 /// pixel. Without a track there was no fit where the edge points were too few, and such a
@@ -388,19 +439,13 @@ fn a_lone_circle_too_large_over_the_other_spheres_track_may_hold_both() {
 /// no result on three recordings of eight).
 #[test]
 fn a_sphere_without_a_track_is_fitted_from_its_blob() {
-    use crate::analysis::detect::{self, tests as synthetic};
     let r = 6.25;
     let centre = [100.3, 40.7];
-    let img = synthetic::frame(104.0, r, &[centre], &synthetic::side_lit(r));
-    let view = synthetic::view();
-    let lv = detect::levels(&img, &view);
-    let blobs = detect::find_blobs(&img, &view, &lv, r, 0.5);
-    let [blob] = &blobs[..] else {
-        panic!("blobs {blobs:?}, expected the sphere's");
-    };
-    let fit =
-        super::measure::fit_from_track(&img, &view, 0, blob, None, [None, None], [r, r], &lv, &[])
-            .expect("a fit from the blob's centroid");
+    let scene = SideLit::new(r, centre);
+    let fit = scene
+        .refit(&scene.blob, None)
+        .grey_level_fit()
+        .expect("a fit from the blob's centroid");
     let off = (fit.centre[0] - centre[0]).hypot(fit.centre[1] - centre[1]);
     assert!(
         off < 0.1,
@@ -416,33 +461,18 @@ fn a_sphere_without_a_track_is_fitted_from_its_blob() {
 /// whose radius is the sphere's is the sphere.
 #[test]
 fn a_sphere_without_a_track_whose_blob_is_its_lit_side_is_fitted_where_it_is() {
-    use crate::analysis::detect::{self, tests as synthetic};
     let r = 17.1;
     let centre = [100.3, 44.7];
-    let img = synthetic::frame(104.0, r, &[centre], &synthetic::side_lit(r));
-    let view = synthetic::view();
-    let lv = detect::levels(&img, &view);
-    let blobs = detect::find_blobs(&img, &view, &lv, r, 0.5);
-    let [blob] = &blobs[..] else {
-        panic!("blobs {blobs:?}, expected the sphere's");
-    };
+    let scene = SideLit::new(r, centre);
     let towards_light = std::f64::consts::FRAC_1_SQRT_2 * r / 3.0;
     let lit_side = crate::analysis::detect::Blob {
         centroid: [centre[0] - towards_light, centre[1] - towards_light],
-        ..blob.clone()
+        ..scene.blob.clone()
     };
-    let fit = super::measure::fit_from_track(
-        &img,
-        &view,
-        0,
-        &lit_side,
-        None,
-        [None, None],
-        [r, r],
-        &lv,
-        &[],
-    )
-    .expect("a fit from round the blob's centroid");
+    let fit = scene
+        .refit(&lit_side, None)
+        .grey_level_fit()
+        .expect("a fit from round the blob's centroid");
     let off = (fit.centre[0] - centre[0]).hypot(fit.centre[1] - centre[1]);
     assert!(
         off < 0.1,
@@ -459,33 +489,14 @@ fn a_sphere_without_a_track_whose_blob_is_its_lit_side_is_fitted_where_it_is() {
 /// sphere's size.
 #[test]
 fn an_edge_fit_off_its_track_gives_way_to_the_disc_of_the_spheres_size() {
-    use super::measure::{fit_again, BlobFit};
+    use super::measure::BlobFit;
     use crate::analysis::circle::CircleFit;
-    use crate::analysis::detect::{self, tests as synthetic};
     let r = 6.85;
     let centre = [100.3, 40.7];
-    let img = synthetic::frame(104.0, r, &[centre], &synthetic::side_lit(r));
-    let view = synthetic::view();
-    let lv = detect::levels(&img, &view);
-    let blobs = detect::find_blobs(&img, &view, &lv, r, 0.5);
-    let [blob] = &blobs[..] else {
-        panic!("blobs {blobs:?}, expected the sphere's");
-    };
+    let scene = SideLit::new(r, centre);
     let again = |first: CircleFit, track: [f64; 2]| {
         let fit = BlobFit::Fitted(first, false);
-        match fit_again(
-            &img,
-            &view,
-            0,
-            blob,
-            None,
-            [Some(track), None],
-            [r, r],
-            Some(r),
-            &lv,
-            &[],
-            fit,
-        ) {
+        match scene.refit(&scene.blob, Some(track)).again(fit, Some(r)) {
             BlobFit::Fitted(f, _) => f,
             other => panic!("{other:?}"),
         }
@@ -507,19 +518,7 @@ fn an_edge_fit_off_its_track_gives_way_to_the_disc_of_the_spheres_size() {
     );
     // A fit whose edge a backdrop hid in part, with no track: kept, not refitted from the blob.
     let hidden = BlobFit::Fitted(right, true);
-    let kept = fit_again(
-        &img,
-        &view,
-        0,
-        blob,
-        None,
-        [None, None],
-        [r, r],
-        None,
-        &lv,
-        &[],
-        hidden,
-    );
+    let kept = scene.refit(&scene.blob, None).again(hidden, None);
     assert!(
         matches!(kept, BlobFit::Fitted(f, true) if f.centre == centre),
         "{kept:?}"
